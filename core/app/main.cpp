@@ -1,0 +1,219 @@
+// The `talus` command: point driver, plugin tools (and, with the solver, run
+// and validate). Every user error ends in one message on stderr and exit
+// status 1; command-line misuse exits with status 2 (CLI11's convention is
+// kept: 105 and up are its own parse errors, mapped to 2 here).
+#include <talus/conformance.hpp>
+#include <talus/error.hpp>
+#include <talus/plugin_loader.hpp>
+#include <talus/point_driver.hpp>
+#include <talus/yaml_input.hpp>
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include <iostream>
+#include <sstream>
+
+namespace {
+
+using namespace talus;
+
+std::string wrap(const std::string &text, std::size_t indent, std::size_t width = 78) {
+    std::istringstream words(text);
+    std::string word, line, out;
+    const std::string pad(indent, ' ');
+    while (words >> word) {
+        if (!line.empty() && line.size() + 1 + word.size() > width - indent) {
+            out += pad + line + '\n';
+            line.clear();
+        }
+        line += (line.empty() ? "" : " ") + word;
+    }
+    if (!line.empty()) out += pad + line + '\n';
+    return out;
+}
+
+void print_model(std::ostream &out, const Model &m) {
+    out << fmt::format("model {} {}: {}\n", m.id(), m.version(), m.name());
+    out << wrap(m.doc(), 2);
+    out << fmt::format("  kinematics: {}; tangent: {}\n",
+                       m.finite_strain() ? "finite strain (uses F, owns its objectivity)"
+                                         : "strain increment (host rotates stress objectively)",
+                       m.has_tangent() ? "consistent tangent provided" : "not provided");
+    out << "  parameters (YAML keys of the material, beside model and density):\n";
+    if (m.params().empty()) out << "    none\n";
+    for (const ParamInfo &p : m.params()) {
+        out << fmt::format("    {:<20} [{}] {}, {}\n", p.key, p.unit, p.type_name(),
+                           p.required() ? "required" : fmt::format("default {:g}", p.default_value));
+        out << fmt::format("      bounds: {}; example: {:g}\n", p.bounds_text(), p.typical_value);
+        out << wrap(p.doc, 6);
+    }
+    out << "  state variables:\n";
+    if (m.state().empty()) out << "    none\n";
+    for (const StateInfo &s : m.state()) {
+        std::string flags;
+        if (s.output()) flags += ", written to output";
+        if (s.user_initialisable()) flags += ", user-initialisable";
+        out << fmt::format("    {:<20} [{}] {} component{}, initially {:g}{}\n", s.name, s.unit,
+                           s.size, s.size == 1 ? "" : "s", s.initial_value, flags);
+        out << wrap(s.doc, 6);
+    }
+}
+
+void print_library(std::ostream &out, const PluginLibrary &lib) {
+    out << fmt::format("library {} {} (material ABI {}.{})\n  {}\n", lib.name(), lib.version(),
+                       lib.abi_major(), lib.abi_minor(), lib.path().string());
+    for (const Model &m : lib.models()) {
+        out << '\n';
+        print_model(out, m);
+    }
+}
+
+bool looks_like_library(const std::string &s) {
+    return s.find('/') != std::string::npos || (s.size() > 3 && s.substr(s.size() - 3) == ".so");
+}
+
+} // namespace
+
+int main(int argc, char **argv) {
+    CLI::App app{"Talus: Material Point Method for large-deformation solid and soil mechanics"};
+    app.require_subcommand(1);
+    app.set_version_flag("--version", std::string(talus::host_name()) +
+                                          fmt::format(" (material ABI {}.{})",
+                                                      TALUS_ABI_VERSION_MAJOR,
+                                                      TALUS_ABI_VERSION_MINOR));
+    std::vector<std::string> plugin_path;
+    app.add_option("--plugin-path", plugin_path,
+                   "Directory searched for plugins before TALUS_PLUGIN_PATH (repeatable)")
+        ->type_name("DIR");
+
+    // talus point
+    auto *point = app.add_subcommand("point", "Run a single material-point test (driver case YAML)");
+    std::string case_file, csv_out;
+    point->add_option("case", case_file, "Driver case file (YAML)")->required()->type_name("CASE.yaml");
+    point->add_option("-o,--output", csv_out, "Write the CSV here instead of standard output")
+        ->type_name("OUT.csv");
+
+    // talus plugin info|check|list
+    auto *plugin = app.add_subcommand("plugin", "Inspect and check material plugins");
+    plugin->require_subcommand(1);
+    auto *info = plugin->add_subcommand("info", "Describe a plugin library, or the model with this id");
+    std::string info_target;
+    info->add_option("target", info_target, "Library path or name, or a model id")
+        ->required()
+        ->type_name("LIB_OR_MODEL");
+    auto *list = plugin->add_subcommand("list", "List every model found on the plugin search path");
+    auto *check = plugin->add_subcommand("check", "Run the conformance suite on a plugin library");
+    std::string check_target;
+    std::vector<std::string> check_params;
+    talus::CheckOptions check_opt;
+    bool no_isolate = false;
+    check->add_option("library", check_target, "Library path or name")->required()->type_name("LIB");
+    check->add_option("--param", check_params,
+                      "Override a parameter's typical value for the checks (repeatable)")
+        ->type_name("KEY=VALUE");
+    check->add_option("--strain-scale", check_opt.strain_scale,
+                      "Strain increment of the loading paths (default 1e-4)")
+        ->check(CLI::PositiveNumber);
+    check->add_option("--density", check_opt.density, "Density of the test point in kg/m^3 (default 2000)")
+        ->check(CLI::PositiveNumber);
+    check->add_flag("--no-isolate", no_isolate,
+                    "Run the checks in this process (for debugging a plugin under gdb)");
+
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::ParseError &e) {
+        const int code = app.exit(e);
+        return code == 0 ? 0 : 2;
+    }
+
+    try {
+        std::vector<std::filesystem::path> dirs(plugin_path.begin(), plugin_path.end());
+        talus::PluginRegistry registry(dirs);
+
+        if (point->parsed()) {
+            const talus::yaml::Node root = talus::yaml::load_file(case_file);
+            const talus::PointCase pc = talus::read_point_case(root, registry);
+            const auto rows = talus::run_point_case(pc);
+            std::ostringstream csv;
+            talus::write_point_csv(csv, pc.instance->model(), rows);
+            if (csv_out.empty()) std::cout << csv.str();
+            else talus::write_file_atomically(csv_out, csv.str());
+            return 0;
+        }
+        if (info->parsed()) {
+            if (looks_like_library(info_target)) {
+                print_library(std::cout, registry.load(info_target));
+                return 0;
+            }
+            // A bare word is a library name if such a file exists, else a model id.
+            try {
+                print_library(std::cout, registry.load(info_target));
+                return 0;
+            } catch (const talus::Error &) {
+            }
+            const talus::Model &m = registry.find_model(info_target);
+            std::cout << fmt::format("(from {} {}, {})\n\n", m.library().name(),
+                                     m.library().version(), m.library().path().string());
+            print_model(std::cout, m);
+            return 0;
+        }
+        if (list->parsed()) {
+            registry.load_all();
+            if (registry.libraries().empty()) {
+                std::cout << "no plugins found; searched:\n";
+                for (const auto &d : registry.search_dirs()) std::cout << "  " << d.string() << '\n';
+                return 1;
+            }
+            for (const auto &lib : registry.libraries())
+                for (const talus::Model &m : lib->models())
+                    std::cout << fmt::format("{:<20} {:<8} {:<50} {}\n", m.id(), m.version(), m.name(),
+                                             lib->path().string());
+            return 0;
+        }
+        if (check->parsed()) {
+            for (const std::string &kv : check_params) {
+                const auto eq = kv.find('=');
+                if (eq == std::string::npos || eq == 0)
+                    throw talus::Error(fmt::format("--param {}: expected KEY=VALUE", kv));
+                try {
+                    std::size_t used = 0;
+                    const double v = std::stod(kv.substr(eq + 1), &used);
+                    if (used != kv.size() - eq - 1) throw std::invalid_argument("trailing text");
+                    check_opt.params.emplace_back(kv.substr(0, eq), v);
+                } catch (const std::exception &) {
+                    throw talus::Error(fmt::format("--param {}: '{}' is not a number", kv, kv.substr(eq + 1)));
+                }
+            }
+            check_opt.isolate = !no_isolate;
+            // Resolve a name through the search path, but do not load it
+            // here: the checks load it themselves (in a child process).
+            std::filesystem::path file = check_target;
+            if (!looks_like_library(check_target)) {
+                bool found = false;
+                for (const auto &d : registry.search_dirs())
+                    for (const std::string &n : {check_target, "talus_" + check_target + ".so",
+                                                check_target + ".so"})
+                        if (!found && std::filesystem::is_regular_file(d / n)) {
+                            file = d / n;
+                            found = true;
+                        }
+                if (!found)
+                    throw talus::Error(fmt::format("plugin library '{}' not found on the plugin search path",
+                                                   check_target));
+            } else if (!std::filesystem::exists(file)) {
+                throw talus::Error(fmt::format("{}: plugin library not found", file.string()));
+            }
+            const talus::ConformanceReport rep = talus::check_plugin(file, check_opt);
+            talus::print_report(std::cout, rep);
+            return rep.passed() ? 0 : 1;
+        }
+    } catch (const talus::Error &e) {
+        std::cerr << e.what() << '\n';
+        return 1;
+    } catch (const std::exception &e) {
+        std::cerr << "talus: internal error: " << e.what() << '\n';
+        return 1;
+    }
+    return 0;
+}
