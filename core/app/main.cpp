@@ -120,6 +120,21 @@ int main(int argc, char **argv) {
     check->add_flag("--no-isolate", no_isolate,
                     "Run the checks in this process (for debugging a plugin under gdb)");
 
+    // CLI11 would only say "a subcommand is required" for a mistyped one.
+    if (argc > 1 && argv[1][0] != '-') {
+        const std::string word = argv[1];
+        std::vector<std::string> names;
+        for (const CLI::App *sub : app.get_subcommands({})) names.push_back(sub->get_name());
+        if (std::find(names.begin(), names.end(), word) == names.end()) {
+            const std::string guess = talus::yaml::closest_match(word, std::span<const std::string>(names));
+            std::string known;
+            for (const auto &n : names) known += (known.empty() ? "" : ", ") + n;
+            std::cerr << fmt::format("talus: unknown command '{}'{}; commands: {} (see talus --help)\n",
+                                     word, guess.empty() ? "" : fmt::format(" (did you mean '{}'?)", guess),
+                                     known);
+            return 2;
+        }
+    }
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError &e) {

@@ -23,9 +23,10 @@ std::vector<std::string> exported_symbols(const std::filesystem::path &file) {
         if (off > bytes.size() || len > bytes.size() - off) throw fail("truncated file");
         return bytes.data() + off;
     };
+    if (bytes.size() < SELFMAG || std::memcmp(bytes.data(), ELFMAG, SELFMAG) != 0)
+        throw fail("not an ELF file");
     Elf64_Ehdr eh;
     std::memcpy(&eh, view(0, sizeof(eh)), sizeof(eh));
-    if (std::memcmp(eh.e_ident, ELFMAG, SELFMAG) != 0) throw fail("not an ELF file");
     if (eh.e_ident[EI_CLASS] != ELFCLASS64) throw fail("not a 64-bit ELF file");
     if (eh.e_shentsize != sizeof(Elf64_Shdr)) throw fail("unexpected section header size");
 

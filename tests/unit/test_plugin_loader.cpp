@@ -1,0 +1,290 @@
+// The loader: every fault a plugin library can have gets its own actionable
+// message, the search order is the documented one, and a misbehaving update
+// is contained (failure status, never a crash or a NaN reaching the host).
+#include "test_paths.hpp"
+
+#include <talus/plugin_loader.hpp>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+
+namespace fs = std::filesystem;
+using talus::test::contains;
+using talus::test::fixture;
+
+namespace {
+
+std::string load_error(const fs::path &file) {
+    try {
+        talus::PluginLibrary::open(file);
+    } catch (const talus::Error &e) {
+        return e.what();
+    }
+    return "(no error)";
+}
+
+// A scratch directory removed at the end of the test.
+struct TempDir {
+    fs::path path;
+    TempDir() {
+        char tmpl[] = "/tmp/talus_test_XXXXXX";
+        path = mkdtemp(tmpl);
+    }
+    ~TempDir() { fs::remove_all(path); }
+};
+
+// Unset TALUS_PLUGIN_PATH for the test and restore it afterwards.
+struct EnvGuard {
+    std::string old;
+    bool had = false;
+    EnvGuard() {
+        if (const char *v = std::getenv("TALUS_PLUGIN_PATH")) {
+            old = v;
+            had = true;
+        }
+        unsetenv("TALUS_PLUGIN_PATH");
+    }
+    ~EnvGuard() {
+        if (had) setenv("TALUS_PLUGIN_PATH", old.c_str(), 1);
+        else unsetenv("TALUS_PLUGIN_PATH");
+    }
+};
+
+// One point of elastic loading through an instance, for the update tests.
+talus::MaterialInstance::Result one_point(const talus::MaterialInstance &m, double *stress_out) {
+    const double de[6] = {1e-4, 0, 0, 0, 0, 0};
+    const double F[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    const double rho = 1000.0, s0[6] = {0, 0, 0, 0, 0, 0};
+    double c = 0.0;
+    talus_batch b{};
+    b.flags = TALUS_BATCH_WANT_WAVE_SPEED;
+    b.n_points = 1;
+    b.dt = 1.0;
+    b.strain_increment = de;
+    b.F_start = F;
+    b.F_end = F;
+    b.density = &rho;
+    b.stress_start = s0;
+    b.stress_end = stress_out;
+    b.wave_speed = &c;
+    return m.update(b);
+}
+
+} // namespace
+
+TEST(Loader, LoadsTheShippedLinearElasticPlugin) {
+    EnvGuard env;
+    talus::PluginRegistry reg;
+    const talus::PluginLibrary &lib = reg.load("linear_elastic");
+    ASSERT_EQ(lib.models().size(), 1u);
+    const talus::Model &m = lib.models()[0];
+    EXPECT_EQ(m.id(), "linear_elastic");
+    EXPECT_TRUE(m.has_tangent());
+    EXPECT_FALSE(m.finite_strain());
+    ASSERT_EQ(m.params().size(), 2u);
+    EXPECT_EQ(m.params()[0].key, "youngs_modulus");
+    EXPECT_EQ(m.params()[0].unit, "Pa");
+    EXPECT_TRUE(m.params()[0].required());
+    // Bounds are the positive-definiteness conditions, exclusive.
+    EXPECT_FALSE(m.params()[0].in_bounds(0.0));
+    EXPECT_TRUE(m.params()[0].in_bounds(1.0));
+    EXPECT_FALSE(m.params()[1].in_bounds(0.5));
+    EXPECT_FALSE(m.params()[1].in_bounds(-1.0));
+    EXPECT_TRUE(m.params()[1].in_bounds(0.49));
+    EXPECT_EQ(m.state_size(), 0u);
+    // The same file loaded twice is one library.
+    EXPECT_EQ(&reg.load((talus::test::plugin_dir() / "talus_linear_elastic.so").string()), &lib);
+}
+
+TEST(Loader, FileNotFoundListsEveryPlaceSearched) {
+    EnvGuard env;
+    setenv("TALUS_PLUGIN_PATH", "/env/dir/a:/env/dir/b", 1);
+    talus::PluginRegistry reg({"/cli/dir"});
+    std::string msg;
+    try {
+        reg.load("no_such_plugin");
+    } catch (const talus::Error &e) {
+        msg = e.what();
+    }
+    // In the documented order: --plugin-path, TALUS_PLUGIN_PATH, build dir.
+    const auto p_cli = msg.find("/cli/dir/talus_no_such_plugin.so");
+    const auto p_env_a = msg.find("/env/dir/a/talus_no_such_plugin.so");
+    const auto p_env_b = msg.find("/env/dir/b/talus_no_such_plugin.so");
+    const auto p_build = msg.find((talus::test::plugin_dir() / "talus_no_such_plugin.so").string());
+    ASSERT_NE(p_cli, std::string::npos) << msg;
+    ASSERT_NE(p_env_a, std::string::npos) << msg;
+    ASSERT_NE(p_env_b, std::string::npos) << msg;
+    ASSERT_NE(p_build, std::string::npos) << msg;
+    EXPECT_LT(p_cli, p_env_a);
+    EXPECT_LT(p_env_a, p_env_b);
+    EXPECT_LT(p_env_b, p_build);
+    EXPECT_TRUE(contains(msg, "--plugin-path")) << msg;
+}
+
+TEST(Loader, SearchOrderPrefersPluginPathThenEnvironmentThenBuildDir) {
+    EnvGuard env;
+    TempDir cli, envdir;
+    const fs::path shipped = talus::test::plugin_dir() / "talus_linear_elastic.so";
+    fs::copy_file(shipped, cli.path / "talus_linear_elastic.so");
+    fs::copy_file(shipped, envdir.path / "talus_linear_elastic.so");
+    setenv("TALUS_PLUGIN_PATH", envdir.path.c_str(), 1);
+    {
+        talus::PluginRegistry reg({cli.path});
+        EXPECT_EQ(reg.load("linear_elastic").path().parent_path(), fs::canonical(cli.path));
+    }
+    {
+        talus::PluginRegistry reg;
+        EXPECT_EQ(reg.load("linear_elastic").path().parent_path(), fs::canonical(envdir.path));
+    }
+    {
+        talus::PluginRegistry reg({}, /*use_environment=*/false);
+        EXPECT_EQ(reg.load("linear_elastic").path().parent_path(),
+                  fs::canonical(talus::test::plugin_dir()));
+    }
+    // A model id found by scanning: the earlier directory shadows the later
+    // file of the same name, so there is no duplicate.
+    {
+        talus::PluginRegistry reg({cli.path});
+        EXPECT_EQ(reg.find_model("linear_elastic").library().path().parent_path(),
+                  fs::canonical(cli.path));
+    }
+}
+
+TEST(Loader, ExplicitPathThatDoesNotExist) {
+    talus::PluginRegistry reg;
+    try {
+        reg.load("/nowhere/talus_x.so");
+        FAIL() << "expected an error";
+    } catch (const talus::Error &e) {
+        EXPECT_TRUE(contains(e.what(), "/nowhere/talus_x.so: plugin library not found")) << e.what();
+    }
+}
+
+TEST(Loader, NotALoadableLibraryQuotesDlerror) {
+    const std::string msg = load_error(fixture("not_a_library"));
+    EXPECT_TRUE(contains(msg, "not a loadable shared library:")) << msg;
+    // dlerror's own words about the file (glibc: "invalid ELF header" or
+    // "file too short"), so the user sees the real cause.
+    EXPECT_TRUE(contains(msg, "ELF") || contains(msg, "too short")) << msg;
+}
+
+TEST(Loader, NoEntrySymbol) {
+    const std::string msg = load_error(fixture("no_entry"));
+    EXPECT_TRUE(contains(msg, "no exported symbol 'talus_material_entry'")) << msg;
+}
+
+TEST(Loader, AbiMajorMismatchRefusedByThePlugin) {
+    const std::string msg = load_error(fixture("wrong_major"));
+    EXPECT_TRUE(contains(msg, "refused to load (host speaks ABI 1.0)")) << msg;
+    EXPECT_TRUE(contains(msg, "built for Talus material ABI 2.0")) << msg;
+}
+
+TEST(Loader, AbiMajorMismatchCaughtByTheHost) {
+    const std::string msg = load_error(fixture("wrong_major_silent"));
+    EXPECT_TRUE(contains(msg, "ABI major version mismatch: the plugin was built for Talus material "
+                              "ABI 2.0, this host speaks ABI 1.0"))
+        << msg;
+}
+
+TEST(Loader, InvalidDescriptorNamesTheField) {
+    const std::string msg = load_error(fixture("bad_descriptor"));
+    EXPECT_TRUE(contains(msg, "invalid plugin descriptor: model 'fixture_model' parameter #0: "
+                              "fields 'min_value' (1) and 'max_value' (0) are not an interval"))
+        << msg;
+}
+
+TEST(Loader, DuplicateModelIdAcrossLibraries) {
+    EnvGuard env;
+    talus::PluginRegistry explicit_reg;
+    explicit_reg.load(fixture("good_c").string());
+    try {
+        explicit_reg.load((talus::test::fixture_dir() / "scan" / "talus_duplicate.so").string());
+        FAIL() << "expected a duplicate-id error";
+    } catch (const talus::Error &e) {
+        EXPECT_TRUE(contains(e.what(), "duplicate model id 'good_c_elastic': offered by both")) << e.what();
+    }
+    // Found by scanning a directory that holds both.
+    talus::PluginRegistry scan_reg({talus::test::fixture_dir() / "scan"});
+    try {
+        scan_reg.find_model("good_c_elastic");
+        FAIL() << "expected a duplicate-id error";
+    } catch (const talus::Error &e) {
+        EXPECT_TRUE(contains(e.what(), "duplicate model id 'good_c_elastic'")) << e.what();
+    }
+}
+
+TEST(Loader, UnknownModelSuggestsTheClosestId) {
+    EnvGuard env;
+    talus::PluginRegistry reg;
+    try {
+        reg.find_model("linear_elastik");
+        FAIL() << "expected an error";
+    } catch (const talus::Error &e) {
+        EXPECT_TRUE(contains(e.what(), "no plugin offers the material model 'linear_elastik' (did "
+                                       "you mean 'linear_elastic'?)"))
+            << e.what();
+    }
+}
+
+TEST(Loader, SdkGuardTurnsAnExceptionIntoAFailureNamingThePoint) {
+    talus::PluginRegistry reg;
+    const talus::Model &m = reg.load(fixture("throws_sdk").string()).models()[0];
+    const double p[] = {1e6};
+    const auto inst = m.create(p);
+    double s[6];
+    const auto r = one_point(*inst, s);
+    EXPECT_EQ(r.status, TALUS_STATUS_FAILED);
+    EXPECT_EQ(r.point, 0);
+    EXPECT_FALSE(r.host_detected);
+    EXPECT_TRUE(contains(r.message, "exception at point 0: the model gave up on purpose")) << r.message;
+}
+
+TEST(Loader, ExceptionEscapingARawPluginIsContained) {
+    talus::PluginRegistry reg;
+    const talus::Model &m = reg.load(fixture("throws_raw").string()).models()[0];
+    const double p[] = {1e7, 0.3};
+    const auto inst = m.create(p);
+    double s[6];
+    const auto r = one_point(*inst, s);
+    EXPECT_EQ(r.status, TALUS_STATUS_FAILED);
+    EXPECT_TRUE(contains(r.message, "exception escaped")) << r.message;
+}
+
+TEST(Loader, NaNFromAPluginNeverReachesTheHost) {
+    talus::PluginRegistry reg;
+    const talus::Model &m = reg.load(fixture("returns_nan").string()).models()[0];
+    const double p[] = {1e7, 0.3};
+    const auto inst = m.create(p);
+    double s[6];
+    const auto r = one_point(*inst, s);
+    EXPECT_EQ(r.status, TALUS_STATUS_FAILED);
+    EXPECT_TRUE(r.host_detected);
+    EXPECT_EQ(r.point, 0);
+    EXPECT_TRUE(contains(r.message, "returned status OK but a non-finite stress")) << r.message;
+}
+
+TEST(Loader, CreateReportsThePluginsRejection) {
+    talus::PluginRegistry reg;
+    const talus::Model &m = reg.load("linear_elastic").models()[0];
+    const double too_few[] = {1e7};
+    try {
+        m.create(too_few);
+        FAIL() << "expected an error";
+    } catch (const talus::Error &e) {
+        EXPECT_TRUE(contains(e.what(), "1 parameter values given, 2 expected")) << e.what();
+    }
+}
+
+TEST(Loader, CheckParameterExplainsBounds) {
+    talus::ParamInfo nu{"poisson_ratio", "-", "", TALUS_PARAM_REAL,
+                        TALUS_PARAM_MIN_EXCLUSIVE | TALUS_PARAM_MAX_EXCLUSIVE, 0.0, -1.0, 0.5, 0.3};
+    EXPECT_EQ(talus::check_parameter(nu, 0.3), "");
+    EXPECT_EQ(talus::check_parameter(nu, 0.5), "expected -1 < poisson_ratio < 0.5 (unit -)");
+    talus::ParamInfo n{"iterations", "-", "", TALUS_PARAM_INTEGER, 0, 10, 1, 100, 10};
+    EXPECT_EQ(talus::check_parameter(n, 2.5), "expected an integer");
+    EXPECT_EQ(talus::check_parameter(n, 0.0), "expected 1 <= iterations <= 100 (unit -)");
+    EXPECT_EQ(talus::check_parameter(n, NAN), "expected a finite number");
+}
