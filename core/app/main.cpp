@@ -44,7 +44,8 @@ void print_model(std::ostream &out, const Model &m) {
     if (m.params().empty()) out << "    none\n";
     for (const ParamInfo &p : m.params()) {
         out << fmt::format("    {:<20} [{}] {}, {}\n", p.key, p.unit, p.type_name(),
-                           p.required() ? "required" : fmt::format("default {:g}", p.default_value));
+                           p.required() ? "required"
+                                        : fmt::format("default {:g}", p.default_value));
         out << fmt::format("      bounds: {}; example: {:g}\n", p.bounds_text(), p.typical_value);
         out << wrap(p.doc, 6);
     }
@@ -78,26 +79,30 @@ bool looks_like_library(const std::string &s) {
 int main(int argc, char **argv) {
     CLI::App app{"Talus: Material Point Method for large-deformation solid and soil mechanics"};
     app.require_subcommand(1);
-    app.set_version_flag("--version", std::string(talus::host_name()) +
-                                          fmt::format(" (material ABI {}.{})",
-                                                      TALUS_ABI_VERSION_MAJOR,
-                                                      TALUS_ABI_VERSION_MINOR));
+    app.set_version_flag("--version",
+                         std::string(talus::host_name()) + fmt::format(" (material ABI {}.{})",
+                                                                       TALUS_ABI_VERSION_MAJOR,
+                                                                       TALUS_ABI_VERSION_MINOR));
     std::vector<std::string> plugin_path;
     app.add_option("--plugin-path", plugin_path,
                    "Directory searched for plugins before TALUS_PLUGIN_PATH (repeatable)")
         ->type_name("DIR");
 
     // talus point
-    auto *point = app.add_subcommand("point", "Run a single material-point test (driver case YAML)");
+    auto *point =
+        app.add_subcommand("point", "Run a single material-point test (driver case YAML)");
     std::string case_file, csv_out;
-    point->add_option("case", case_file, "Driver case file (YAML)")->required()->type_name("CASE.yaml");
+    point->add_option("case", case_file, "Driver case file (YAML)")
+        ->required()
+        ->type_name("CASE.yaml");
     point->add_option("-o,--output", csv_out, "Write the CSV here instead of standard output")
         ->type_name("OUT.csv");
 
     // talus plugin info|check|list
     auto *plugin = app.add_subcommand("plugin", "Inspect and check material plugins");
     plugin->require_subcommand(1);
-    auto *info = plugin->add_subcommand("info", "Describe a plugin library, or the model with this id");
+    auto *info =
+        plugin->add_subcommand("info", "Describe a plugin library, or the model with this id");
     std::string info_target;
     info->add_option("target", info_target, "Library path or name, or a model id")
         ->required()
@@ -108,14 +113,20 @@ int main(int argc, char **argv) {
     std::vector<std::string> check_params;
     talus::CheckOptions check_opt;
     bool no_isolate = false;
-    check->add_option("library", check_target, "Library path or name")->required()->type_name("LIB");
-    check->add_option("--param", check_params,
-                      "Override a parameter's typical value for the checks (repeatable)")
+    check->add_option("library", check_target, "Library path or name")
+        ->required()
+        ->type_name("LIB");
+    check
+        ->add_option("--param", check_params,
+                     "Override a parameter's typical value for the checks (repeatable)")
         ->type_name("KEY=VALUE");
-    check->add_option("--strain-scale", check_opt.strain_scale,
-                      "Strain increment of the loading paths (default 1e-4)")
+    check
+        ->add_option("--strain-scale", check_opt.strain_scale,
+                     "Strain increment of the loading paths (default 1e-4)")
         ->check(CLI::PositiveNumber);
-    check->add_option("--density", check_opt.density, "Density of the test point in kg/m^3 (default 2000)")
+    check
+        ->add_option("--density", check_opt.density,
+                     "Density of the test point in kg/m^3 (default 2000)")
         ->check(CLI::PositiveNumber);
     check->add_flag("--no-isolate", no_isolate,
                     "Run the checks in this process (for debugging a plugin under gdb)");
@@ -124,14 +135,17 @@ int main(int argc, char **argv) {
     if (argc > 1 && argv[1][0] != '-') {
         const std::string word = argv[1];
         std::vector<std::string> names;
-        for (const CLI::App *sub : app.get_subcommands({})) names.push_back(sub->get_name());
+        for (const CLI::App *sub : app.get_subcommands({}))
+            names.push_back(sub->get_name());
         if (std::find(names.begin(), names.end(), word) == names.end()) {
-            const std::string guess = talus::yaml::closest_match(word, std::span<const std::string>(names));
+            const std::string guess =
+                talus::yaml::closest_match(word, std::span<const std::string>(names));
             std::string known;
-            for (const auto &n : names) known += (known.empty() ? "" : ", ") + n;
-            std::cerr << fmt::format("talus: unknown command '{}'{}; commands: {} (see talus --help)\n",
-                                     word, guess.empty() ? "" : fmt::format(" (did you mean '{}'?)", guess),
-                                     known);
+            for (const auto &n : names)
+                known += (known.empty() ? "" : ", ") + n;
+            std::cerr << fmt::format(
+                "talus: unknown command '{}'{}; commands: {} (see talus --help)\n", word,
+                guess.empty() ? "" : fmt::format(" (did you mean '{}'?)", guess), known);
             return 2;
         }
     }
@@ -152,8 +166,10 @@ int main(int argc, char **argv) {
             const auto rows = talus::run_point_case(pc);
             std::ostringstream csv;
             talus::write_point_csv(csv, pc.instance->model(), rows);
-            if (csv_out.empty()) std::cout << csv.str();
-            else talus::write_file_atomically(csv_out, csv.str());
+            if (csv_out.empty())
+                std::cout << csv.str();
+            else
+                talus::write_file_atomically(csv_out, csv.str());
             return 0;
         }
         if (info->parsed()) {
@@ -177,13 +193,14 @@ int main(int argc, char **argv) {
             registry.load_all();
             if (registry.libraries().empty()) {
                 std::cout << "no plugins found; searched:\n";
-                for (const auto &d : registry.search_dirs()) std::cout << "  " << d.string() << '\n';
+                for (const auto &d : registry.search_dirs())
+                    std::cout << "  " << d.string() << '\n';
                 return 1;
             }
             for (const auto &lib : registry.libraries())
                 for (const talus::Model &m : lib->models())
-                    std::cout << fmt::format("{:<20} {:<8} {:<50} {}\n", m.id(), m.version(), m.name(),
-                                             lib->path().string());
+                    std::cout << fmt::format("{:<20} {:<8} {:<50} {}\n", m.id(), m.version(),
+                                             m.name(), lib->path().string());
             return 0;
         }
         if (check->parsed()) {
@@ -197,7 +214,8 @@ int main(int argc, char **argv) {
                     if (used != kv.size() - eq - 1) throw std::invalid_argument("trailing text");
                     check_opt.params.emplace_back(kv.substr(0, eq), v);
                 } catch (const std::exception &) {
-                    throw talus::Error(fmt::format("--param {}: '{}' is not a number", kv, kv.substr(eq + 1)));
+                    throw talus::Error(
+                        fmt::format("--param {}: '{}' is not a number", kv, kv.substr(eq + 1)));
                 }
             }
             check_opt.isolate = !no_isolate;
@@ -207,15 +225,15 @@ int main(int argc, char **argv) {
             if (!looks_like_library(check_target)) {
                 bool found = false;
                 for (const auto &d : registry.search_dirs())
-                    for (const std::string &n : {check_target, "talus_" + check_target + ".so",
-                                                check_target + ".so"})
+                    for (const std::string &n :
+                         {check_target, "talus_" + check_target + ".so", check_target + ".so"})
                         if (!found && std::filesystem::is_regular_file(d / n)) {
                             file = d / n;
                             found = true;
                         }
                 if (!found)
-                    throw talus::Error(fmt::format("plugin library '{}' not found on the plugin search path",
-                                                   check_target));
+                    throw talus::Error(fmt::format(
+                        "plugin library '{}' not found on the plugin search path", check_target));
             } else if (!std::filesystem::exists(file)) {
                 throw talus::Error(fmt::format("{}: plugin library not found", file.string()));
             }

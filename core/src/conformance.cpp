@@ -29,7 +29,8 @@ bool ConformanceReport::passed() const { return failures() == 0 && !outcomes.emp
 
 std::size_t ConformanceReport::failures() const {
     std::size_t n = 0;
-    for (const auto &o : outcomes) n += o.passed ? 0 : 1;
+    for (const auto &o : outcomes)
+        n += o.passed ? 0 : 1;
     return n;
 }
 
@@ -120,8 +121,8 @@ double max_difference(const std::vector<Out> &a, const std::vector<Out> &b, doub
     for (std::size_t i = 0; i < a.size(); ++i) {
         d = std::max(d, (a[i].s1 - b[i].s1).cwiseAbs().maxCoeff() / stress_scale);
         for (std::size_t k = 0; k < a[i].q1.size(); ++k)
-            d = std::max(d, std::abs(a[i].q1[k] - b[i].q1[k]) /
-                                std::max(1.0, std::abs(a[i].q1[k])));
+            d = std::max(d,
+                         std::abs(a[i].q1[k] - b[i].q1[k]) / std::max(1.0, std::abs(a[i].q1[k])));
         if (with_c) d = std::max(d, std::abs(a[i].c - b[i].c) / std::max(a[i].c, 1e-300));
         if (with_D)
             d = std::max(d, (a[i].D - b[i].D).cwiseAbs().maxCoeff() /
@@ -177,7 +178,7 @@ class ModelChecks {
     Sink &sink_;
     std::unique_ptr<MaterialInstance> instance_;
     unsigned fp_before_ = 0;
-    std::vector<Pt> states_;      // loaded states (start of the checks' increments)
+    std::vector<Pt> states_;       // loaded states (start of the checks' increments)
     std::vector<Vec6> directions_; // loading direction that produced each state
     double stress_scale_ = 1.0;    // rho c^2 * strain_scale: stress of one increment
 
@@ -197,9 +198,11 @@ class ModelChecks {
         }
         for (const auto &kv : opt_.params) {
             bool known = false;
-            for (const ParamInfo &p : model_.params()) known |= p.key == kv.first;
+            for (const ParamInfo &p : model_.params())
+                known |= p.key == kv.first;
             if (!known) {
-                report("create", false, fmt::format("--param {}: the model has no such parameter", kv.first));
+                report("create", false,
+                       fmt::format("--param {}: the model has no such parameter", kv.first));
                 return false;
             }
         }
@@ -275,11 +278,13 @@ class ModelChecks {
         for (std::size_t s = 0; s < states_.size(); ++s)
             for (int k = 0; k < per_state; ++k) {
                 Pt p = states_[s];
-                if (zero) p.de.setZero();
+                if (zero)
+                    p.de.setZero();
                 else {
                     Vec6 dir = directions_[s] / directions_[s].norm();
                     if (k > 0)
-                        for (int j = 0; j < 6; ++j) dir[j] += 0.5 * u(rng);
+                        for (int j = 0; j < 6; ++j)
+                            dir[j] += 0.5 * u(rng);
                     p.de = opt_.strain_scale * dir / dir.norm();
                 }
                 p.F1 = advance_F(p.F0, p.de);
@@ -312,8 +317,9 @@ class ModelChecks {
                 worst = std::max(worst, std::abs(o[i].q1[k] - pts[i].q0[k]) /
                                             std::max(1.0, std::abs(pts[i].q0[k])));
         }
-        report("zero increment", worst <= 1e-12,
-               fmt::format("largest relative change of stress or state: {:.3g} (limit 1e-12)", worst));
+        report(
+            "zero increment", worst <= 1e-12,
+            fmt::format("largest relative change of stress or state: {:.3g} (limit 1e-12)", worst));
     }
 
     // Batch size and aliasing must not change a result: each point is
@@ -334,11 +340,13 @@ class ModelChecks {
             if (!r.ok()) return report("batch size", false, "batches of one point: " + r.message);
         }
         for (std::size_t i = 0; i < pts.size(); i += 7) {
-            r = run_batch(*instance_, pts, i, std::min<std::size_t>(7, pts.size() - i), flags, sevens);
+            r = run_batch(*instance_, pts, i, std::min<std::size_t>(7, pts.size() - i), flags,
+                          sevens);
             if (!r.ok()) return report("batch size", false, "batches of 7 points: " + r.message);
         }
-        const double d = std::max(max_difference(whole, ones, stress_scale_, true, model_.has_tangent()),
-                                  max_difference(whole, sevens, stress_scale_, true, model_.has_tangent()));
+        const double d =
+            std::max(max_difference(whole, ones, stress_scale_, true, model_.has_tangent()),
+                     max_difference(whole, sevens, stress_scale_, true, model_.has_tangent()));
         report("batch size", d <= kInvariance,
                fmt::format("{} points as 1 batch, {} batches of 1 and batches of 7: largest "
                            "relative difference {:.3g} (limit {:g})",
@@ -350,7 +358,9 @@ class ModelChecks {
         const std::vector<Pt> pts = points(false, 3);
         std::vector<Out> separate, aliased;
         auto r = run_batch(*instance_, pts, 0, pts.size(), TALUS_BATCH_WANT_WAVE_SPEED, separate);
-        if (r.ok()) r = run_batch(*instance_, pts, 0, pts.size(), TALUS_BATCH_WANT_WAVE_SPEED, aliased, true);
+        if (r.ok())
+            r = run_batch(*instance_, pts, 0, pts.size(), TALUS_BATCH_WANT_WAVE_SPEED, aliased,
+                          true);
         if (!r.ok()) return report("in place", false, r.message);
         const double d = max_difference(separate, aliased, stress_scale_, true, false);
         report("in place", d <= kInvariance,
@@ -389,7 +399,8 @@ class ModelChecks {
                 }
                 std::vector<Out> o;
                 r = run_batch(*instance_, pm, 0, 2, 0, o);
-                if (!r.ok()) return report("tangent", false, "finite-difference probe: " + r.message);
+                if (!r.ok())
+                    return report("tangent", false, "finite-difference probe: " + r.message);
                 fd.col(j) = (o[0].s1 - o[1].s1) / (2.0 * h);
             }
             const double scale = std::max(D.cwiseAbs().maxCoeff(), 1e-300);
@@ -425,7 +436,8 @@ class ModelChecks {
             hi = std::max(hi, x.c);
         }
         report("wave speed", true,
-               fmt::format("finite and positive at {} points: {:.6g} .. {:.6g} m/s", o.size(), lo, hi));
+               fmt::format("finite and positive at {} points: {:.6g} .. {:.6g} m/s", o.size(), lo,
+                           hi));
     }
 
     void nan_input() {
@@ -461,7 +473,8 @@ class ModelChecks {
                                           c.what, bad, r.point));
         }
         report("nan input", true,
-               "NaN strain increment, NaN stress and infinite increment each give TALUS_STATUS_FAILED");
+               "NaN strain increment, NaN stress and infinite increment each give "
+               "TALUS_STATUS_FAILED");
     }
 
     void threads() {
@@ -476,7 +489,8 @@ class ModelChecks {
         const std::size_t half = pts.size() / 2;
         std::vector<Out> a, b;
         MaterialInstance::Result ra, rb;
-        auto work = [&](std::size_t begin, std::size_t n, std::vector<Out> &out, MaterialInstance::Result &res) {
+        auto work = [&](std::size_t begin, std::size_t n, std::vector<Out> &out,
+                        MaterialInstance::Result &res) {
             for (int rep = 0; rep < 50 && res.ok(); ++rep) {
                 out.clear();
                 std::vector<Out> tmp;
@@ -488,7 +502,8 @@ class ModelChecks {
         std::thread t2(work, half, pts.size() - half, std::ref(b), std::ref(rb));
         t1.join();
         t2.join();
-        if (!ra.ok() || !rb.ok()) return report("threads", false, ra.ok() ? rb.message : ra.message);
+        if (!ra.ok() || !rb.ok())
+            return report("threads", false, ra.ok() ? rb.message : ra.message);
         a.insert(a.end(), b.begin(), b.end());
         const double d = max_difference(serial, a, stress_scale_, true, model_.has_tangent());
         report("threads", d <= kInvariance,
@@ -503,18 +518,21 @@ void library_checks(const std::filesystem::path &file, const CheckOptions &opt, 
     try {
         const std::vector<std::string> syms = exported_symbols(file);
         std::vector<std::string> talus_syms, others;
-        for (const auto &s : syms) (s.rfind("talus_", 0) == 0 ? talus_syms : others).push_back(s);
+        for (const auto &s : syms)
+            (s.rfind("talus_", 0) == 0 ? talus_syms : others).push_back(s);
         const bool ok = talus_syms.size() == 1 && talus_syms[0] == TALUS_MATERIAL_ENTRY_SYMBOL;
         std::string list;
-        for (const auto &s : talus_syms) list += (list.empty() ? "" : ", ") + s;
+        for (const auto &s : talus_syms)
+            list += (list.empty() ? "" : ", ") + s;
         sink.emit(CheckOutcome{
             "", "exports", ok,
             ok ? fmt::format("exactly one talus_ symbol, {}; {} other exported symbol(s)",
                              TALUS_MATERIAL_ENTRY_SYMBOL, others.size())
-               : fmt::format("expected exactly one exported talus_ symbol ({}), found {}: {} (build "
-                             "with talus_add_plugin, or hide the rest with -fvisibility=hidden)",
-                             TALUS_MATERIAL_ENTRY_SYMBOL, talus_syms.size(),
-                             list.empty() ? "none" : list)});
+               : fmt::format(
+                     "expected exactly one exported talus_ symbol ({}), found {}: {} (build "
+                     "with talus_add_plugin, or hide the rest with -fvisibility=hidden)",
+                     TALUS_MATERIAL_ENTRY_SYMBOL, talus_syms.size(),
+                     list.empty() ? "none" : list)});
     } catch (const Error &e) {
         sink.emit(CheckOutcome{"", "exports", false, e.what()});
     }
@@ -528,19 +546,22 @@ void library_checks(const std::filesystem::path &file, const CheckOptions &opt, 
         return;
     }
     std::string ids;
-    for (const Model &m : lib->models()) ids += (ids.empty() ? "" : ", ") + m.id();
+    for (const Model &m : lib->models())
+        ids += (ids.empty() ? "" : ", ") + m.id();
     sink.emit(CheckOutcome{"", "load", true,
                            fmt::format("library '{}' {} built for ABI {}.{}; descriptors valid; "
                                        "models: {}",
                                        lib->name(), lib->version(), lib->abi_major(),
                                        lib->abi_minor(), ids)});
-    for (const Model &m : lib->models()) ModelChecks(m, opt, sink).run();
+    for (const Model &m : lib->models())
+        ModelChecks(m, opt, sink).run();
 }
 
 // Lines over the pipe: "S\tmodel\tname" (starting) or "P|F\tmodel\tname\tdetail".
 std::string escape(const std::string &s) {
     std::string o;
-    for (char c : s) o += (c == '\n' ? '\x1f' : (c == '\t' ? ' ' : c));
+    for (char c : s)
+        o += (c == '\n' ? '\x1f' : (c == '\t' ? ' ' : c));
     return o;
 }
 std::string unescape(const std::string &s) {
@@ -592,7 +613,9 @@ ConformanceReport check_plugin(const std::filesystem::path &file, const CheckOpt
                       put(fmt::format("{}\t{}\t{}\t{}", o.passed ? 'P' : 'F', o.model, o.name,
                                       escape(o.detail)));
                   },
-                  [&](const std::string &m, const std::string &n) { put(fmt::format("S\t{}\t{}", m, n)); }};
+                  [&](const std::string &m, const std::string &n) {
+                      put(fmt::format("S\t{}\t{}", m, n));
+                  }};
         try {
             library_checks(file, opt, sink);
         } catch (const std::exception &e) {
@@ -605,7 +628,8 @@ ConformanceReport check_plugin(const std::filesystem::path &file, const CheckOpt
     std::string buf, cur_model, cur_name;
     char chunk[4096];
     ssize_t n;
-    while ((n = read(fds[0], chunk, sizeof chunk)) > 0) buf.append(chunk, static_cast<std::size_t>(n));
+    while ((n = read(fds[0], chunk, sizeof chunk)) > 0)
+        buf.append(chunk, static_cast<std::size_t>(n));
     close(fds[0]);
     int status = 0;
     waitpid(pid, &status, 0);
@@ -628,8 +652,8 @@ ConformanceReport check_plugin(const std::filesystem::path &file, const CheckOpt
                                     ? fmt::format("crashed with signal {} ({})", WTERMSIG(status),
                                                   strsignal(WTERMSIG(status)))
                                     : fmt::format("exited with status {}", WEXITSTATUS(status));
-        rep.outcomes.push_back(CheckOutcome{cur_model, cur_name.empty() ? "checker" : cur_name, false,
-                                            "the plugin " + how + " during this check"});
+        rep.outcomes.push_back(CheckOutcome{cur_model, cur_name.empty() ? "checker" : cur_name,
+                                            false, "the plugin " + how + " during this check"});
     }
     return rep;
 }
@@ -648,8 +672,10 @@ void print_report(std::ostream &out, const ConformanceReport &rep) {
         out << fmt::format("  {}  {:<16} {}\n", o.passed ? "PASS" : "FAIL", o.name, detail);
     }
     const std::size_t total = rep.outcomes.size(), bad = rep.failures();
-    if (bad == 0) out << fmt::format("result: all {} checks passed\n", total);
-    else out << fmt::format("result: {} of {} checks FAILED\n", bad, total);
+    if (bad == 0)
+        out << fmt::format("result: all {} checks passed\n", total);
+    else
+        out << fmt::format("result: {} of {} checks FAILED\n", bad, total);
 }
 
 } // namespace talus

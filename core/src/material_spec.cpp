@@ -21,15 +21,18 @@ MaterialSpec read_material(const yaml::Node &node, PluginRegistry &registry) {
     const Model &model = *spec.model;
 
     std::vector<std::string_view> allowed = {"model", "density"};
-    for (const ParamInfo &p : model.params()) allowed.push_back(p.key);
-    const bool any_user_state = std::any_of(model.state().begin(), model.state().end(),
-                                            [](const StateInfo &s) { return s.user_initialisable(); });
+    for (const ParamInfo &p : model.params())
+        allowed.push_back(p.key);
+    const bool any_user_state =
+        std::any_of(model.state().begin(), model.state().end(),
+                    [](const StateInfo &s) { return s.user_initialisable(); });
     if (any_user_state) allowed.push_back("initial_state");
     node.allow_keys(allowed);
 
     const yaml::Node rho = node.require("density");
     spec.density = rho.as_double();
-    if (!(spec.density > 0.0)) rho.fail(fmt::format("expected density > 0 (kg/m^3), got {}", spec.density));
+    if (!(spec.density > 0.0))
+        rho.fail(fmt::format("expected density > 0 (kg/m^3), got {}", spec.density));
 
     for (const ParamInfo &p : model.params()) {
         const yaml::Node v = node.get(p.key);
@@ -62,8 +65,10 @@ MaterialSpec read_material(const yaml::Node &node, PluginRegistry &registry) {
             const yaml::Node v = init.get(s.name);
             if (!v.raw().IsDefined()) continue;
             std::vector<double> values;
-            if (v.is_sequence()) values = v.as_doubles();
-            else values.assign(s.size, v.as_double());
+            if (v.is_sequence())
+                values = v.as_doubles();
+            else
+                values.assign(s.size, v.as_double());
             if (values.size() != s.size)
                 v.fail(fmt::format("expected {} values for state variable '{}', got {}", s.size,
                                    s.name, values.size()));

@@ -36,10 +36,11 @@ std::string ParamInfo::bounds_text() const {
     const char *lo_op = (flags & TALUS_PARAM_MIN_EXCLUSIVE) ? "<" : "<=";
     const char *hi_op = (flags & TALUS_PARAM_MAX_EXCLUSIVE) ? "<" : "<=";
     if (type == TALUS_PARAM_BOOLEAN) return "true or false";
-    if (has_lo && has_hi) return fmt::format("{:g} {} {} {} {:g}", min_value, lo_op, key, hi_op, max_value);
+    if (has_lo && has_hi)
+        return fmt::format("{:g} {} {} {} {:g}", min_value, lo_op, key, hi_op, max_value);
     if (has_lo)
-        return fmt::format("{} {} {:g}", key, (flags & TALUS_PARAM_MIN_EXCLUSIVE) ? ">" : ">=",
-                           min_value);
+        return fmt::format("{} {} {:g}", key,
+                           (flags & TALUS_PARAM_MIN_EXCLUSIVE) ? ">" : ">=", min_value);
     if (has_hi) return fmt::format("{} {} {:g}", key, hi_op, max_value);
     return "any finite value";
 }
@@ -77,7 +78,8 @@ struct DescriptorChecker {
     const fs::path &file;
 
     [[noreturn]] void bad(const std::string &where, const std::string &what) const {
-        throw Error(fmt::format("{}: invalid plugin descriptor: {}: {}", file.string(), where, what));
+        throw Error(
+            fmt::format("{}: invalid plugin descriptor: {}: {}", file.string(), where, what));
     }
     void need_string(const char *s, const std::string &where, const char *field) const {
         if (!s) bad(where, fmt::format("field '{}' is null", field));
@@ -99,24 +101,28 @@ struct DescriptorChecker {
                 bad(where, fmt::format("field 'key': '{}' is reserved for the host", d->key));
         need_string(d->unit, where, "unit");
         need_string(d->doc, where, "doc");
-        if (d->type > TALUS_PARAM_BOOLEAN) bad(where, fmt::format("field 'type': unknown type {}", d->type));
+        if (d->type > TALUS_PARAM_BOOLEAN)
+            bad(where, fmt::format("field 'type': unknown type {}", d->type));
         constexpr std::uint32_t known =
             TALUS_PARAM_REQUIRED | TALUS_PARAM_MIN_EXCLUSIVE | TALUS_PARAM_MAX_EXCLUSIVE;
-        if (d->flags & ~known) bad(where, fmt::format("field 'flags': unknown bits 0x{:x}", d->flags & ~known));
+        if (d->flags & ~known)
+            bad(where, fmt::format("field 'flags': unknown bits 0x{:x}", d->flags & ~known));
         if (std::isnan(d->min_value) || std::isnan(d->max_value) || d->min_value > d->max_value)
-            bad(where, fmt::format("fields 'min_value' ({}) and 'max_value' ({}) are not an interval",
-                                   d->min_value, d->max_value));
-        ParamInfo p{d->key,          d->unit,          d->doc,          d->type,
-                    d->flags,        d->default_value, d->min_value,    d->max_value,
-                    d->typical_value};
+            bad(where,
+                fmt::format("fields 'min_value' ({}) and 'max_value' ({}) are not an interval",
+                            d->min_value, d->max_value));
+        ParamInfo p{d->key,           d->unit,      d->doc,       d->type,         d->flags,
+                    d->default_value, d->min_value, d->max_value, d->typical_value};
         if (!p.required()) {
             const std::string why = check_parameter(p, d->default_value);
             if (!why.empty())
-                bad(where, fmt::format("field 'default_value' ({}) is invalid: {}", d->default_value, why));
+                bad(where, fmt::format("field 'default_value' ({}) is invalid: {}",
+                                       d->default_value, why));
         }
         const std::string why = check_parameter(p, d->typical_value);
         if (!why.empty())
-            bad(where, fmt::format("field 'typical_value' ({}) is invalid: {}", d->typical_value, why));
+            bad(where,
+                fmt::format("field 'typical_value' ({}) is invalid: {}", d->typical_value, why));
         return p;
     }
 
@@ -128,9 +134,11 @@ struct DescriptorChecker {
                                    d->name ? d->name : "(null)"));
         need_string(d->unit, where, "unit");
         need_string(d->doc, where, "doc");
-        if (d->size == 0 || d->size > 81) bad(where, fmt::format("field 'size' is {}, expected 1..81", d->size));
+        if (d->size == 0 || d->size > 81)
+            bad(where, fmt::format("field 'size' is {}, expected 1..81", d->size));
         constexpr std::uint32_t known = TALUS_STATE_OUTPUT | TALUS_STATE_USER_INIT;
-        if (d->flags & ~known) bad(where, fmt::format("field 'flags': unknown bits 0x{:x}", d->flags & ~known));
+        if (d->flags & ~known)
+            bad(where, fmt::format("field 'flags': unknown bits 0x{:x}", d->flags & ~known));
         if (!std::isfinite(d->initial_value))
             bad(where, fmt::format("field 'initial_value' is not finite ({})", d->initial_value));
         return StateInfo{d->name, d->unit, d->doc, d->size, d->flags, d->initial_value, 0};
@@ -190,8 +198,8 @@ std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
     try {
         status = entry(&host, &desc, &err);
     } catch (...) {
-        throw Error(fmt::format("{}: the entry point threw an exception across the C ABI",
-                                file.string()));
+        throw Error(
+            fmt::format("{}: the entry point threw an exception across the C ABI", file.string()));
     }
     if (status != TALUS_STATUS_OK)
         throw Error(fmt::format("{}: the plugin refused to load (host speaks ABI {}.{}): {}",
@@ -212,7 +220,8 @@ std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
     chk.need_size(desc->struct_size, sizeof(talus_library), "library");
     chk.need_string(desc->name, "library", "name");
     chk.need_string(desc->version, "library", "version");
-    if (desc->n_models == 0) chk.bad("library", "field 'n_models' is 0: the library offers no model");
+    if (desc->n_models == 0)
+        chk.bad("library", "field 'n_models' is 0: the library offers no model");
     if (!desc->models) chk.bad("library", "field 'models' is null");
     lib->name_ = desc->name;
     lib->version_ = desc->version;
@@ -253,14 +262,16 @@ std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
         for (std::uint32_t i = 0; i < md->n_params; ++i) {
             const std::string pw = fmt::format("{} parameter #{}", where, i);
             ParamInfo p = chk.param(md->params[i], pw);
-            if (!keys.insert(p.key).second) chk.bad(pw, fmt::format("key '{}' appears twice", p.key));
+            if (!keys.insert(p.key).second)
+                chk.bad(pw, fmt::format("key '{}' appears twice", p.key));
             model.params_.push_back(std::move(p));
         }
         std::set<std::string> names;
         for (std::uint32_t i = 0; i < md->n_state; ++i) {
             const std::string sw = fmt::format("{} state variable #{}", where, i);
             StateInfo s = chk.state(md->state[i], sw);
-            if (!names.insert(s.name).second) chk.bad(sw, fmt::format("name '{}' appears twice", s.name));
+            if (!names.insert(s.name).second)
+                chk.bad(sw, fmt::format("name '{}' appears twice", s.name));
             s.offset = model.state_size_;
             model.state_size_ += s.size;
             model.state_.push_back(std::move(s));
@@ -297,7 +308,8 @@ std::unique_ptr<MaterialInstance> Model::create(std::span<const double> values) 
     talus_instance *inst = nullptr;
     std::int32_t status = TALUS_STATUS_FAILED;
     try {
-        status = raw_->create(values.data(), static_cast<std::uint32_t>(values.size()), &inst, &err);
+        status =
+            raw_->create(values.data(), static_cast<std::uint32_t>(values.size()), &inst, &err);
     } catch (...) {
         throw Error(fmt::format("model '{}' ({}): create threw an exception across the C ABI", id_,
                                 library_->path().string()));
@@ -356,21 +368,24 @@ MaterialInstance::Result MaterialInstance::update(talus_batch &b) const noexcept
     const bool want_t = (b.flags & TALUS_BATCH_WANT_TANGENT) != 0;
     for (std::size_t i = 0; i < n; ++i) {
         bool good = true;
-        for (std::size_t k = 0; k < 6; ++k) good &= std::isfinite(b.stress_end[6 * i + k]);
-        for (std::size_t k = 0; k < ns; ++k) good &= std::isfinite(b.state_end[ns * i + k]);
+        for (std::size_t k = 0; k < 6; ++k)
+            good &= std::isfinite(b.stress_end[6 * i + k]);
+        for (std::size_t k = 0; k < ns; ++k)
+            good &= std::isfinite(b.state_end[ns * i + k]);
         if (want_c) good &= std::isfinite(b.wave_speed[i]) && b.wave_speed[i] > 0.0;
         if (want_t)
-            for (std::size_t k = 0; k < 36; ++k) good &= std::isfinite(b.tangent[36 * i + k]);
+            for (std::size_t k = 0; k < 36; ++k)
+                good &= std::isfinite(b.tangent[36 * i + k]);
         if (!good) {
             r.status = TALUS_STATUS_FAILED;
             r.host_detected = true;
             r.point = static_cast<std::int64_t>(i);
-            r.message = fmt::format(
-                "returned status OK but a non-finite {} at point {}",
-                want_c && !(std::isfinite(b.wave_speed[i]) && b.wave_speed[i] > 0.0)
-                    ? "or non-positive wave speed"
-                    : "stress, state or tangent",
-                i);
+            r.message =
+                fmt::format("returned status OK but a non-finite {} at point {}",
+                            want_c && !(std::isfinite(b.wave_speed[i]) && b.wave_speed[i] > 0.0)
+                                ? "or non-positive wave speed"
+                                : "stress, state or tangent",
+                            i);
             return r;
         }
     }
@@ -404,14 +419,15 @@ std::vector<fs::path> PluginRegistry::search_dirs() const {
             }
         }
     }
-#ifdef TALUS_BUILD_PLUGIN_DIR
-    dirs.emplace_back(TALUS_BUILD_PLUGIN_DIR);
-#endif
+    // The shipped plugins, found relative to the running executable so that
+    // both a build tree (bin/ beside plugins/) and an installed, possibly
+    // moved, tree (bin/ beside lib/talus/plugins/) work without settings.
+    if (const fs::path exe = executable_dir(); !exe.empty()) {
+        dirs.push_back(exe.parent_path() / "plugins");
 #ifdef TALUS_INSTALL_PLUGIN_SUBDIR
-    // Relative to the executable, so an installed tree can be moved.
-    if (const fs::path exe = executable_dir(); !exe.empty())
         dirs.push_back(exe.parent_path() / TALUS_INSTALL_PLUGIN_SUBDIR);
 #endif
+    }
     return dirs;
 }
 
@@ -424,18 +440,19 @@ const PluginLibrary &PluginRegistry::add(const fs::path &file) {
     for (const Model &m : lib->models())
         for (const auto &other : libraries_)
             if (other->find(m.id()))
-                throw Error(fmt::format("duplicate model id '{}': offered by both {} and {}; remove "
-                                        "one of them from the plugin search path",
-                                        m.id(), other->path().string(), canon.string()));
+                throw Error(
+                    fmt::format("duplicate model id '{}': offered by both {} and {}; remove "
+                                "one of them from the plugin search path",
+                                m.id(), other->path().string(), canon.string()));
     libraries_.push_back(std::move(lib));
     return *libraries_.back();
 }
 
 const PluginLibrary &PluginRegistry::load(const std::string &name_or_path) {
-    const bool explicit_path = name_or_path.find('/') != std::string::npos ||
-                               (name_or_path.size() > 3 &&
-                                name_or_path.compare(name_or_path.size() - 3, 3, ".so") == 0 &&
-                                fs::exists(name_or_path));
+    const bool explicit_path =
+        name_or_path.find('/') != std::string::npos ||
+        (name_or_path.size() > 3 && name_or_path.compare(name_or_path.size() - 3, 3, ".so") == 0 &&
+         fs::exists(name_or_path));
     if (explicit_path) {
         if (!fs::exists(name_or_path))
             throw Error(fmt::format("{}: plugin library not found", name_or_path));
@@ -464,7 +481,8 @@ void PluginRegistry::load_all() {
         std::vector<fs::path> files;
         for (const auto &e : fs::directory_iterator(dir, ec)) {
             const std::string fn = e.path().filename().string();
-            if (fn.rfind("talus_", 0) == 0 && e.path().extension() == ".so") files.push_back(e.path());
+            if (fn.rfind("talus_", 0) == 0 && e.path().extension() == ".so")
+                files.push_back(e.path());
         }
         std::sort(files.begin(), files.end()); // deterministic order
         for (const fs::path &f : files)
@@ -479,13 +497,16 @@ const Model &PluginRegistry::find_model(const std::string &id) {
     std::vector<std::string> known;
     for (const auto &lib : libraries_) {
         if (const Model *m = lib->find(id)) return *m;
-        for (const Model &m : lib->models()) known.push_back(m.id());
+        for (const Model &m : lib->models())
+            known.push_back(m.id());
     }
     std::string dirs;
-    for (const fs::path &d : search_dirs()) dirs += "\n  " + d.string();
+    for (const fs::path &d : search_dirs())
+        dirs += "\n  " + d.string();
     const std::string guess = yaml::closest_match(id, std::span<const std::string>(known));
     std::string list;
-    for (const auto &k : known) list += (list.empty() ? "" : ", ") + k;
+    for (const auto &k : known)
+        list += (list.empty() ? "" : ", ") + k;
     throw Error(fmt::format("no plugin offers the material model '{}'{}; models found: {}; plugin "
                             "directories searched:{}",
                             id, guess.empty() ? "" : fmt::format(" (did you mean '{}'?)", guess),

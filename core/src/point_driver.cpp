@@ -27,7 +27,8 @@ double PiecewiseLinear::operator()(double t) const {
     if (t <= points_.front()[0]) return points_.front()[1];
     if (t >= points_.back()[0]) return points_.back()[1];
     std::size_t i = 1;
-    while (points_[i][0] < t) ++i;
+    while (points_[i][0] < t)
+        ++i;
     const auto &a = points_[i - 1];
     const auto &b = points_[i];
     const double w = (t - a[0]) / (b[0] - a[0]);
@@ -42,9 +43,11 @@ PiecewiseLinear PiecewiseLinear::read(const yaml::Node &node) {
     for (std::size_t i = 0; i < node.size(); ++i) {
         const yaml::Node p = node.at(i);
         const std::vector<double> tv = p.as_doubles();
-        if (tv.size() != 2) p.fail(fmt::format("expected a [time, value] pair, got {} numbers", tv.size()));
+        if (tv.size() != 2)
+            p.fail(fmt::format("expected a [time, value] pair, got {} numbers", tv.size()));
         if (!pts.empty() && !(tv[0] > pts.back()[0]))
-            p.fail(fmt::format("times must increase strictly: {:g} follows {:g}", tv[0], pts.back()[0]));
+            p.fail(fmt::format("times must increase strictly: {:g} follows {:g}", tv[0],
+                               pts.back()[0]));
         pts.push_back({tv[0], tv[1]});
     }
     return PiecewiseLinear(std::move(pts));
@@ -57,9 +60,8 @@ constexpr std::array<std::string_view, 6> kComponents = {"xx", "yy", "zz", "xy",
 } // namespace
 
 PointCase read_point_case(const yaml::Node &root, PluginRegistry &registry) {
-    constexpr std::array<std::string_view, 7> top = {"talus",          "plugins", "material",
-                                                     "initial_stress", "time",    "strain",
-                                                     "output"};
+    constexpr std::array<std::string_view, 7> top = {
+        "talus", "plugins", "material", "initial_stress", "time", "strain", "output"};
     root.allow_keys(top);
     const yaml::Node version = root.require("talus");
     if (version.as_integer() != 1)
@@ -90,9 +92,10 @@ PointCase read_point_case(const yaml::Node &root, PluginRegistry &registry) {
     if (const yaml::Node s0 = root.get("initial_stress"); s0.defined()) {
         const std::vector<double> v = s0.as_doubles();
         if (v.size() != 6)
-            s0.fail(fmt::format("expected 6 stress components [xx, yy, zz, xy, yz, xz] in Pa, got {}",
-                                v.size()));
-        for (int i = 0; i < 6; ++i) pc.initial_stress[i] = v[static_cast<std::size_t>(i)];
+            s0.fail(fmt::format(
+                "expected 6 stress components [xx, yy, zz, xy, yz, xz] in Pa, got {}", v.size()));
+        for (int i = 0; i < 6; ++i)
+            pc.initial_stress[i] = v[static_cast<std::size_t>(i)];
     }
 
     const yaml::Node time = root.require("time");
@@ -129,7 +132,8 @@ namespace {
 
 Mat3 strain_tensor(const PointCase &pc, double t) {
     Vec6 e;
-    for (int c = 0; c < 6; ++c) e[c] = pc.strain[static_cast<std::size_t>(c)](t);
+    for (int c = 0; c < 6; ++c)
+        e[c] = pc.strain[static_cast<std::size_t>(c)](t);
     return sdk::stress_to_matrix(e); // tensor shear components, as given
 }
 
@@ -180,7 +184,8 @@ void advance(const PointCase &pc, double t0, double dt, const Mat3 &eps1, PointS
         if (depth >= 30)
             throw Error(fmt::format("model '{}' ({}) keeps asking for a smaller step at t = {:g}: "
                                     "gave up after 30 cuts (dt = {:g}): {}",
-                                    model.id(), model.library().path().string(), t0, dt, r.message));
+                                    model.id(), model.library().path().string(), t0, dt,
+                                    r.message));
         const long n = std::max(2L, static_cast<long>(std::ceil(1.0 / r.cut_factor)));
         const Mat3 eps0 = now.eps;
         for (long k = 1; k <= n; ++k) {
@@ -219,22 +224,30 @@ std::vector<PointRow> run_point_case(const PointCase &pc) {
 
 void write_point_csv(std::ostream &out, const Model &model, const std::vector<PointRow> &rows) {
     out << "time";
-    for (auto c : kComponents) out << ",eps_" << c;
-    for (auto c : kComponents) out << ",sig_" << c;
+    for (auto c : kComponents)
+        out << ",eps_" << c;
+    for (auto c : kComponents)
+        out << ",sig_" << c;
     out << ",p,q";
     for (const StateInfo &s : model.state()) {
-        if (s.size == 1) out << ',' << s.name;
+        if (s.size == 1)
+            out << ',' << s.name;
         else
-            for (std::uint32_t k = 0; k < s.size; ++k) out << ',' << s.name << '_' << k;
+            for (std::uint32_t k = 0; k < s.size; ++k)
+                out << ',' << s.name << '_' << k;
     }
     out << '\n';
     // 17 significant digits: the CSV round-trips every double exactly.
     for (const PointRow &r : rows) {
         out << fmt::format("{:.17g}", r.time);
-        for (int c = 0; c < 6; ++c) out << fmt::format(",{:.17g}", r.strain[c]);
-        for (int c = 0; c < 6; ++c) out << fmt::format(",{:.17g}", r.stress[c]);
-        out << fmt::format(",{:.17g},{:.17g}", sdk::mean_pressure(r.stress), sdk::von_mises(r.stress));
-        for (double v : r.state) out << fmt::format(",{:.17g}", v);
+        for (int c = 0; c < 6; ++c)
+            out << fmt::format(",{:.17g}", r.strain[c]);
+        for (int c = 0; c < 6; ++c)
+            out << fmt::format(",{:.17g}", r.stress[c]);
+        out << fmt::format(",{:.17g},{:.17g}", sdk::mean_pressure(r.stress),
+                           sdk::von_mises(r.stress));
+        for (double v : r.state)
+            out << fmt::format(",{:.17g}", v);
         out << '\n';
     }
 }
@@ -242,8 +255,8 @@ void write_point_csv(std::ostream &out, const Model &model, const std::vector<Po
 void write_file_atomically(const std::string &path, const std::string &content) {
     namespace fs = std::filesystem;
     const fs::path target(path);
-    const fs::path tmp = target.parent_path() /
-                         fmt::format(".{}.tmp.{}", target.filename().string(), ::getpid());
+    const fs::path tmp =
+        target.parent_path() / fmt::format(".{}.tmp.{}", target.filename().string(), ::getpid());
     {
         std::ofstream f(tmp, std::ios::binary);
         if (!f) throw Error(fmt::format("{}: cannot write (check the directory exists)", path));
@@ -259,7 +272,8 @@ void write_file_atomically(const std::string &path, const std::string &content) 
     fs::rename(tmp, target, ec);
     if (ec) {
         std::remove(tmp.c_str());
-        throw Error(fmt::format("{}: cannot move the finished file into place: {}", path, ec.message()));
+        throw Error(
+            fmt::format("{}: cannot move the finished file into place: {}", path, ec.message()));
     }
 }
 

@@ -21,7 +21,8 @@ std::string mark_text(const std::string &file, const YAML::Mark &m) {
 std::size_t edit_distance(std::string_view a, std::string_view b) {
     const std::size_t n = a.size(), m = b.size();
     std::vector<std::size_t> prev2(m + 1), prev(m + 1), cur(m + 1);
-    for (std::size_t j = 0; j <= m; ++j) prev[j] = j;
+    for (std::size_t j = 0; j <= m; ++j)
+        prev[j] = j;
     for (std::size_t i = 1; i <= n; ++i) {
         cur[0] = i;
         for (std::size_t j = 1; j <= m; ++j) {
@@ -36,7 +37,8 @@ std::size_t edit_distance(std::string_view a, std::string_view b) {
     return prev[m];
 }
 
-template <class S> std::string closest_impl(std::string_view word, std::span<const S> candidates) {
+template <class S>
+std::string closest_impl(std::string_view word, std::span<const S> candidates) {
     std::string best;
     std::size_t best_d = std::string_view::npos;
     for (const auto &c : candidates) {
@@ -85,8 +87,8 @@ Node Node::require(std::string_view key) const {
     expect_map();
     const YAML::Node child = node_[std::string(key)];
     if (!child.IsDefined())
-        throw Error(fmt::format("{}: error: missing required key '{}'", where(),
-                                child_path(path_, key)));
+        throw Error(
+            fmt::format("{}: error: missing required key '{}'", where(), child_path(path_, key)));
     return Node(child, file_, child_path(path_, key));
 }
 
@@ -98,7 +100,8 @@ Node Node::at(std::size_t index) const {
 std::vector<std::string> Node::keys() const {
     expect_map();
     std::vector<std::string> out;
-    for (const auto &kv : node_) out.push_back(kv.first.as<std::string>());
+    for (const auto &kv : node_)
+        out.push_back(kv.first.as<std::string>());
     return out;
 }
 
@@ -123,12 +126,13 @@ void Node::allow_keys(std::span<const std::string_view> allowed) const {
         if (std::find(allowed.begin(), allowed.end(), key) != allowed.end()) continue;
         const std::string guess = closest_match(key, allowed);
         std::string list;
-        for (const auto &a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
+        for (const auto &a : allowed)
+            list += (list.empty() ? "" : ", ") + std::string(a);
         const std::string hint =
             guess.empty() ? fmt::format("allowed keys here: {}", list)
                           : fmt::format("did you mean '{}'? (allowed keys here: {})", guess, list);
-        throw Error(fmt::format("{}: error: unknown key '{}'; {}", mark_text(file_, kv.first.Mark()),
-                                child_path(path_, key), hint));
+        throw Error(fmt::format("{}: error: unknown key '{}'; {}",
+                                mark_text(file_, kv.first.Mark()), child_path(path_, key), hint));
     }
 }
 
@@ -170,7 +174,8 @@ std::string Node::as_string() const {
 std::vector<double> Node::as_doubles() const {
     expect_sequence();
     std::vector<double> out;
-    for (std::size_t i = 0; i < node_.size(); ++i) out.push_back(at(i).as_double());
+    for (std::size_t i = 0; i < node_.size(); ++i)
+        out.push_back(at(i).as_double());
     return out;
 }
 

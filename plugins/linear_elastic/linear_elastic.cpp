@@ -54,7 +54,8 @@ struct LinearElastic {
         p_wave_modulus_ = lambda_ + 2.0 * shear_;
         D_.setZero();
         for (int i = 0; i < 3; ++i) {
-            for (int j = 0; j < 3; ++j) D_(i, j) = lambda_;
+            for (int j = 0; j < 3; ++j)
+                D_(i, j) = lambda_;
             D_(i, i) = p_wave_modulus_;
             // Engineering shear strain in, tensor shear stress out: G, not 2G.
             D_(i + 3, i + 3) = shear_;

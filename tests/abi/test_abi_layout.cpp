@@ -57,7 +57,8 @@ TEST(Abi, CAndCxxSeeTheSameLayout) {
     TALUS_LAYOUT_FILL(cxx, ncxx);
     ASSERT_EQ(nc, ncxx);
     ASSERT_LE(nc, static_cast<size_t>(TALUS_LAYOUT_ENTRIES));
-    for (size_t i = 0; i < nc; ++i) EXPECT_EQ(c[i], cxx[i]) << "layout entry " << i;
+    for (size_t i = 0; i < nc; ++i)
+        EXPECT_EQ(c[i], cxx[i]) << "layout entry " << i;
 }
 
 TEST(Abi, VersionAndCodesAreFrozen) {

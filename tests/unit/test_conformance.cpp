@@ -29,13 +29,15 @@ std::string dump(const talus::ConformanceReport &r) {
 } // namespace
 
 TEST(Conformance, LinearElasticPassesEveryCheck) {
-    const auto rep =
-        talus::check_plugin(talus::test::plugin_dir() / "talus_linear_elastic.so", talus::CheckOptions{});
+    const auto rep = talus::check_plugin(talus::test::plugin_dir() / "talus_linear_elastic.so",
+                                         talus::CheckOptions{});
     EXPECT_TRUE(rep.passed()) << dump(rep);
     std::set<std::string> names;
-    for (const auto &o : rep.outcomes) names.insert(o.name);
-    for (const char *n : {"exports", "load", "create", "loading paths", "zero increment", "batch size",
-                          "in place", "tangent", "wave speed", "nan input", "threads", "fp environment"})
+    for (const auto &o : rep.outcomes)
+        names.insert(o.name);
+    for (const char *n :
+         {"exports", "load", "create", "loading paths", "zero increment", "batch size", "in place",
+          "tangent", "wave speed", "nan input", "threads", "fp environment"})
         EXPECT_TRUE(names.count(n)) << "check '" << n << "' did not run\n" << dump(rep);
 }
 
@@ -47,18 +49,21 @@ TEST(Conformance, PlainCPluginPasses) {
 TEST(Conformance, InProcessModeGivesTheSameVerdict) {
     talus::CheckOptions opt;
     opt.isolate = false;
-    EXPECT_TRUE(talus::check_plugin(talus::test::plugin_dir() / "talus_linear_elastic.so", opt).passed());
+    EXPECT_TRUE(
+        talus::check_plugin(talus::test::plugin_dir() / "talus_linear_elastic.so", opt).passed());
     EXPECT_FALSE(talus::check_plugin(fixture("wrong_tangent"), opt).passed());
 }
 
 TEST(Conformance, UnknownParameterOverrideIsReported) {
     talus::CheckOptions opt;
     opt.params = {{"youngs_modulus", 2e8}, {"poison_ratio", 0.2}};
-    const auto rep = talus::check_plugin(talus::test::plugin_dir() / "talus_linear_elastic.so", opt);
+    const auto rep =
+        talus::check_plugin(talus::test::plugin_dir() / "talus_linear_elastic.so", opt);
     const auto *c = find(rep, "create");
     ASSERT_NE(c, nullptr) << dump(rep);
     EXPECT_FALSE(c->passed);
-    EXPECT_TRUE(contains(c->detail, "--param poison_ratio: the model has no such parameter")) << c->detail;
+    EXPECT_TRUE(contains(c->detail, "--param poison_ratio: the model has no such parameter"))
+        << c->detail;
 }
 
 struct BrokenCase {

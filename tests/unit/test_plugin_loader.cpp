@@ -48,8 +48,10 @@ struct EnvGuard {
         unsetenv("TALUS_PLUGIN_PATH");
     }
     ~EnvGuard() {
-        if (had) setenv("TALUS_PLUGIN_PATH", old.c_str(), 1);
-        else unsetenv("TALUS_PLUGIN_PATH");
+        if (had)
+            setenv("TALUS_PLUGIN_PATH", old.c_str(), 1);
+        else
+            unsetenv("TALUS_PLUGIN_PATH");
     }
 };
 
@@ -159,7 +161,8 @@ TEST(Loader, ExplicitPathThatDoesNotExist) {
         reg.load("/nowhere/talus_x.so");
         FAIL() << "expected an error";
     } catch (const talus::Error &e) {
-        EXPECT_TRUE(contains(e.what(), "/nowhere/talus_x.so: plugin library not found")) << e.what();
+        EXPECT_TRUE(contains(e.what(), "/nowhere/talus_x.so: plugin library not found"))
+            << e.what();
     }
 }
 
@@ -204,7 +207,8 @@ TEST(Loader, DuplicateModelIdAcrossLibraries) {
         explicit_reg.load((talus::test::fixture_dir() / "scan" / "talus_duplicate.so").string());
         FAIL() << "expected a duplicate-id error";
     } catch (const talus::Error &e) {
-        EXPECT_TRUE(contains(e.what(), "duplicate model id 'good_c_elastic': offered by both")) << e.what();
+        EXPECT_TRUE(contains(e.what(), "duplicate model id 'good_c_elastic': offered by both"))
+            << e.what();
     }
     // Found by scanning a directory that holds both.
     talus::PluginRegistry scan_reg({talus::test::fixture_dir() / "scan"});
@@ -239,7 +243,8 @@ TEST(Loader, SdkGuardTurnsAnExceptionIntoAFailureNamingThePoint) {
     EXPECT_EQ(r.status, TALUS_STATUS_FAILED);
     EXPECT_EQ(r.point, 0);
     EXPECT_FALSE(r.host_detected);
-    EXPECT_TRUE(contains(r.message, "exception at point 0: the model gave up on purpose")) << r.message;
+    EXPECT_TRUE(contains(r.message, "exception at point 0: the model gave up on purpose"))
+        << r.message;
 }
 
 TEST(Loader, ExceptionEscapingARawPluginIsContained) {
@@ -279,8 +284,15 @@ TEST(Loader, CreateReportsThePluginsRejection) {
 }
 
 TEST(Loader, CheckParameterExplainsBounds) {
-    talus::ParamInfo nu{"poisson_ratio", "-", "", TALUS_PARAM_REAL,
-                        TALUS_PARAM_MIN_EXCLUSIVE | TALUS_PARAM_MAX_EXCLUSIVE, 0.0, -1.0, 0.5, 0.3};
+    talus::ParamInfo nu{"poisson_ratio",
+                        "-",
+                        "",
+                        TALUS_PARAM_REAL,
+                        TALUS_PARAM_MIN_EXCLUSIVE | TALUS_PARAM_MAX_EXCLUSIVE,
+                        0.0,
+                        -1.0,
+                        0.5,
+                        0.3};
     EXPECT_EQ(talus::check_parameter(nu, 0.3), "");
     EXPECT_EQ(talus::check_parameter(nu, 0.5), "expected -1 < poisson_ratio < 0.5 (unit -)");
     talus::ParamInfo n{"iterations", "-", "", TALUS_PARAM_INTEGER, 0, 10, 1, 100, 10};

@@ -48,7 +48,8 @@ std::vector<std::vector<double>> read_csv(const std::filesystem::path &file) {
         std::vector<double> row;
         std::stringstream ss(line);
         std::string cell;
-        while (std::getline(ss, cell, ',')) row.push_back(std::stod(cell));
+        while (std::getline(ss, cell, ','))
+            row.push_back(std::stod(cell));
         rows.push_back(row);
     }
     return rows;
@@ -69,20 +70,23 @@ TEST(PointDriver, ReproducesPeerLinearElasticVectors) {
         const auto &v = rows[r];
         ASSERT_EQ(v.size(), 12u);
         // Engineering shear in the file, tensor components in the driver.
-        const std::string yaml = fmt::format(
-            "talus: 1\n"
-            "material: {{model: linear_elastic, density: 1000, youngs_modulus: 1.0e7, "
-            "poisson_ratio: 0.3}}\n"
-            "time: {{end: 1.0, increments: 1}}\n"
-            "strain:\n"
-            "  xx: [[0, 0], [1, {:.17g}]]\n  yy: [[0, 0], [1, {:.17g}]]\n  zz: [[0, 0], [1, {:.17g}]]\n"
-            "  xy: [[0, 0], [1, {:.17g}]]\n  yz: [[0, 0], [1, {:.17g}]]\n  xz: [[0, 0], [1, {:.17g}]]\n",
-            v[0], v[1], v[2], v[3] / 2, v[4] / 2, v[5] / 2);
+        const std::string yaml =
+            fmt::format("talus: 1\n"
+                        "material: {{model: linear_elastic, density: 1000, youngs_modulus: 1.0e7, "
+                        "poisson_ratio: 0.3}}\n"
+                        "time: {{end: 1.0, increments: 1}}\n"
+                        "strain:\n"
+                        "  xx: [[0, 0], [1, {:.17g}]]\n  yy: [[0, 0], [1, {:.17g}]]\n  zz: [[0, "
+                        "0], [1, {:.17g}]]\n"
+                        "  xy: [[0, 0], [1, {:.17g}]]\n  yz: [[0, 0], [1, {:.17g}]]\n  xz: [[0, "
+                        "0], [1, {:.17g}]]\n",
+                        v[0], v[1], v[2], v[3] / 2, v[4] / 2, v[5] / 2);
         const auto out = run_text(yaml, reg);
         ASSERT_EQ(out.size(), 2u);
         const auto &sig = out.back().stress;
         double scale = 0.0;
-        for (int k = 0; k < 6; ++k) scale = std::max(scale, std::abs(v[6 + static_cast<std::size_t>(k)]));
+        for (int k = 0; k < 6; ++k)
+            scale = std::max(scale, std::abs(v[6 + static_cast<std::size_t>(k)]));
         for (int k = 0; k < 6; ++k)
             EXPECT_NEAR(sig[k], v[6 + static_cast<std::size_t>(k)], 1e-9 * scale)
                 << "row " << r << " component " << k;
@@ -96,8 +100,8 @@ TEST(PointDriver, ReproducesPeerLinearElasticVectors) {
 TEST(PointDriver, OedometerConfigMatchesClosedForm) {
     NoEnv e;
     talus::PluginRegistry reg;
-    const auto root =
-        talus::yaml::load_file((talus::test::source_dir() / "configs/point/linear_elastic_oedometer.yaml").string());
+    const auto root = talus::yaml::load_file(
+        (talus::test::source_dir() / "configs/point/linear_elastic_oedometer.yaml").string());
     const talus::PointCase pc = talus::read_point_case(root, reg);
     const auto rows = talus::run_point_case(pc);
     ASSERT_EQ(rows.size(), 41u);
@@ -120,13 +124,14 @@ TEST(PointDriver, OedometerConfigMatchesClosedForm) {
 TEST(PointDriver, CutStepRequestsAreSubStepped) {
     NoEnv e;
     talus::PluginRegistry reg({talus::test::fixture_dir()});
-    const auto rows = run_text("talus: 1\n"
-                               "plugins: [fixture_cut_step]\n"
-                               "material: {model: picky_elastic, density: 1000, youngs_modulus: 1.0e7, "
-                               "poisson_ratio: 0.25}\n"
-                               "time: {end: 5.0, increments: 5}\n"
-                               "strain: {yy: [[0, 0], [5, 0.005]]}\n",
-                               reg);
+    const auto rows =
+        run_text("talus: 1\n"
+                 "plugins: [fixture_cut_step]\n"
+                 "material: {model: picky_elastic, density: 1000, youngs_modulus: 1.0e7, "
+                 "poisson_ratio: 0.25}\n"
+                 "time: {end: 5.0, increments: 5}\n"
+                 "strain: {yy: [[0, 0], [5, 0.005]]}\n",
+                 reg);
     ASSERT_EQ(rows.size(), 6u);
     EXPECT_EQ(rows.back().state.at(0), 40.0);
     const double E = 1e7, nu = 0.25;
@@ -194,10 +199,12 @@ TEST(PointDriverErrors, WrongTypeSaysANumberWasExpected) {
 }
 
 TEST(PointDriverErrors, MissingRequiredParameterIsDescribed) {
-    const std::string msg = error_of("talus: 1\nmaterial: {model: linear_elastic, density: 1, "
-                                     "poisson_ratio: 0.3}\ntime: {end: 1, increments: 1}\nstrain: {}\n");
-    EXPECT_TRUE(contains(msg, "missing required parameter 'youngs_modulus' of model 'linear_elastic': "
-                              "Young's modulus E. (unit Pa, expected youngs_modulus > 0, e.g. 1e+07)"))
+    const std::string msg =
+        error_of("talus: 1\nmaterial: {model: linear_elastic, density: 1, "
+                 "poisson_ratio: 0.3}\ntime: {end: 1, increments: 1}\nstrain: {}\n");
+    EXPECT_TRUE(contains(msg,
+                         "missing required parameter 'youngs_modulus' of model 'linear_elastic': "
+                         "Young's modulus E. (unit Pa, expected youngs_modulus > 0, e.g. 1e+07)"))
         << msg;
 }
 
@@ -215,15 +222,17 @@ TEST(PointDriverErrors, UnknownModelAndUnknownTopLevelKey) {
 TEST(PointDriverErrors, PathMustBeWellFormed) {
     const std::string head = "talus: 1\nmaterial: {model: linear_elastic, density: 1, "
                              "youngs_modulus: 1e7, poisson_ratio: 0.3}\n";
-    EXPECT_TRUE(contains(error_of(head + "time: {end: 1, increments: 1}\nstrain: {xx: [[0, 0], [0, 1]]}\n"),
-                         "times must increase strictly"));
+    EXPECT_TRUE(
+        contains(error_of(head + "time: {end: 1, increments: 1}\nstrain: {xx: [[0, 0], [0, 1]]}\n"),
+                 "times must increase strictly"));
     EXPECT_TRUE(contains(error_of(head + "time: {end: 1, increments: 0}\nstrain: {}\n"),
                          "expected 1 <= increments"));
     EXPECT_TRUE(contains(error_of(head + "time: {end: 1, increments: 1}\nstrain: {xq: 0}\n"),
                          "unknown key 'strain.xq'"));
     EXPECT_TRUE(contains(error_of("talus: 2\n"), "unsupported file format version 2"));
-    EXPECT_TRUE(contains(error_of(head + "initial_stress: [1, 2]\ntime: {end: 1, increments: 1}\nstrain: {}\n"),
-                         "expected 6 stress components"));
+    EXPECT_TRUE(contains(
+        error_of(head + "initial_stress: [1, 2]\ntime: {end: 1, increments: 1}\nstrain: {}\n"),
+        "expected 6 stress components"));
 }
 
 TEST(PointDriverErrors, PluginFailureNamesModelAndTime) {

@@ -52,7 +52,8 @@ TEST(YamlInput, TypeErrorsSayWhatWasExpected) {
     const ty::Node root = ty::load_string("e: abc\nn: 2.5\nf: .nan\nb: maybe\n", "t.yaml");
     EXPECT_TRUE(contains(error_of([&] { root.get("e").as_double(); }),
                          "t.yaml:1:4: error: 'e' expected a number, got 'abc'"));
-    EXPECT_TRUE(contains(error_of([&] { root.get("n").as_integer(); }), "expected an integer, got '2.5'"));
+    EXPECT_TRUE(
+        contains(error_of([&] { root.get("n").as_integer(); }), "expected an integer, got '2.5'"));
     EXPECT_TRUE(contains(error_of([&] { root.get("f").as_double(); }), "expected a finite number"));
     EXPECT_TRUE(contains(error_of([&] { root.get("b").as_bool(); }), "expected true or false"));
 }
@@ -61,8 +62,10 @@ TEST(YamlInput, MissingKeyAndSyntaxError) {
     const ty::Node root = ty::load_string("time:\n  end: 1\n", "m.yaml");
     EXPECT_TRUE(contains(error_of([&] { root.get("time").require("increments"); }),
                          "m.yaml:2:3: error: missing required key 'time.increments'"));
-    EXPECT_TRUE(contains(error_of([] { ty::load_string("a: [1, 2\nb: 3\n", "s.yaml"); }),
-                         "s.yaml:"));
-    EXPECT_TRUE(contains(error_of([] { ty::load_string("", "e.yaml"); }), "e.yaml: error: the file is empty"));
-    EXPECT_TRUE(contains(error_of([] { ty::load_file("/nonexistent/x.yaml"); }), "cannot open file"));
+    EXPECT_TRUE(
+        contains(error_of([] { ty::load_string("a: [1, 2\nb: 3\n", "s.yaml"); }), "s.yaml:"));
+    EXPECT_TRUE(contains(error_of([] { ty::load_string("", "e.yaml"); }),
+                         "e.yaml: error: the file is empty"));
+    EXPECT_TRUE(
+        contains(error_of([] { ty::load_file("/nonexistent/x.yaml"); }), "cannot open file"));
 }

@@ -20,7 +20,7 @@
 namespace talus {
 
 struct MaterialSpec {
-    std::string name;                  // the YAML key path, for messages
+    std::string name; // the YAML key path, for messages
     const Model *model = nullptr;
     double density = 0.0;              // reference (initial) density
     std::vector<double> param_values;  // in the order of model->params()

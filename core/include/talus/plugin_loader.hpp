@@ -4,7 +4,8 @@
 //   1. an explicit path (anything containing '/' or ending in ".so");
 //   2. the directories given with --plugin-path, in order;
 //   3. the directories in the TALUS_PLUGIN_PATH environment variable;
-//   4. the plugin folder of this build, then of the installation.
+//   4. the shipped plugins beside the running executable: <bin>/../plugins
+//      (a build tree), then <bin>/../lib/talus/plugins (an installation).
 // A name N matches the files N, talus_N.so and N.so. A model id is found by
 // scanning every talus_*.so on the search path; a file name seen in an
 // earlier directory shadows the same name later, and two different libraries
@@ -121,9 +122,9 @@ class MaterialInstance {
 
     struct Result {
         std::int32_t status = TALUS_STATUS_OK;
-        std::int64_t point = -1;  // failing point in the batch, -1 if none
-        double cut_factor = 1.0;  // with TALUS_STATUS_CUT_STEP
-        std::string message;      // empty when ok
+        std::int64_t point = -1; // failing point in the batch, -1 if none
+        double cut_factor = 1.0; // with TALUS_STATUS_CUT_STEP
+        std::string message;     // empty when ok
         // True when the plugin said OK but the host found a non-finite
         // output: the plugin broke the contract rather than failing cleanly.
         bool host_detected = false;

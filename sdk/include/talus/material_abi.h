@@ -102,8 +102,8 @@ extern "C" {
 typedef struct talus_error {
     uint32_t struct_size;
     uint32_t reserved0;
-    int64_t point_index; /* failing point in the batch, or -1 */
-    double cut_factor;   /* with TALUS_STATUS_CUT_STEP: suggested dt factor */
+    int64_t point_index;                    /* failing point in the batch, or -1 */
+    double cut_factor;                      /* with TALUS_STATUS_CUT_STEP: suggested dt factor */
     char message[TALUS_ERROR_MESSAGE_SIZE]; /* NUL-terminated UTF-8 */
 } talus_error;
 
@@ -174,8 +174,8 @@ typedef struct talus_batch {
     uint32_t state_size; /* doubles of state per point: the model's total */
     uint32_t reserved0;
     uint64_t n_points;
-    double time; /* time at the start of the increment */
-    double dt;   /* length of the increment */
+    double time;                    /* time at the start of the increment */
+    double dt;                      /* length of the increment */
     const double *strain_increment; /* n x 6, Voigt, engineering shear */
     const double *F_start;          /* n x 9, row-major */
     const double *F_end;            /* n x 9, row-major */
@@ -201,9 +201,9 @@ typedef struct talus_instance talus_instance;
 
 typedef struct talus_model {
     uint32_t struct_size;
-    uint32_t flags;    /* TALUS_MODEL_* flags */
-    uint32_t n_params; /* entries in params */
-    uint32_t n_state;  /* entries in state */
+    uint32_t flags;      /* TALUS_MODEL_* flags */
+    uint32_t n_params;   /* entries in params */
+    uint32_t n_state;    /* entries in state */
     const char *id;      /* stable id used in YAML: lower_snake_case */
     const char *name;    /* display name */
     const char *version; /* the model's own version, e.g. "1.0.0" */
@@ -214,13 +214,12 @@ typedef struct talus_model {
     /* Make an instance from n_values parameter values, in the order of
      * params, already checked by the host against type and bounds. May
      * reject combinations of values with TALUS_STATUS_FAILED and a message. */
-    int32_t (*create)(const double *param_values, uint32_t n_values,
-                      talus_instance **instance, talus_error *error);
+    int32_t (*create)(const double *param_values, uint32_t n_values, talus_instance **instance,
+                      talus_error *error);
     void (*destroy)(talus_instance *instance);
 
     /* Advance every point of the batch over one increment. */
-    int32_t (*update)(const talus_instance *instance, const talus_batch *batch,
-                      talus_error *error);
+    int32_t (*update)(const talus_instance *instance, const talus_batch *batch, talus_error *error);
 } talus_model;
 
 typedef struct talus_library {
@@ -238,8 +237,7 @@ typedef struct talus_library {
  * its own; otherwise it stores a pointer to its (static) library descriptor
  * in *library and returns TALUS_STATUS_OK. */
 typedef int32_t (*talus_material_entry_fn)(const talus_host_info *host,
-                                           const talus_library **library,
-                                           talus_error *error);
+                                           const talus_library **library, talus_error *error);
 
 #ifdef __cplusplus
 }

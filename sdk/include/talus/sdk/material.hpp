@@ -214,7 +214,7 @@ struct PointIn {
     Mat3 F_start;
     Mat3 F_end;
     double density = 0.0;
-    Vec6 stress;                  // Cauchy at the start of the increment
+    Vec6 stress;                   // Cauchy at the start of the increment
     std::span<const double> state; // at the start of the increment
 };
 
@@ -246,9 +246,11 @@ inline std::int32_t fail(talus_error *err, std::int64_t point, std::string_view 
     return TALUS_STATUS_FAILED;
 }
 
-template <std::size_t N> constexpr std::uint32_t total_state_size(const std::array<State, N> &s) {
+template <std::size_t N>
+constexpr std::uint32_t total_state_size(const std::array<State, N> &s) {
     std::uint32_t n = 0;
-    for (const State &v : s) n += v.size;
+    for (const State &v : s)
+        n += v.size;
     return n;
 }
 
@@ -256,11 +258,13 @@ template <std::size_t N> constexpr std::uint32_t total_state_size(const std::arr
 // infinities, and the sum keeps it. Branch-free so the batch loop vectorises.
 inline double nonfinite_probe(const double *p, std::size_t n) {
     double acc = 0.0;
-    for (std::size_t i = 0; i < n; ++i) acc += p[i] * 0.0;
+    for (std::size_t i = 0; i < n; ++i)
+        acc += p[i] * 0.0;
     return acc;
 }
 
-template <class M> struct Descriptors {
+template <class M>
+struct Descriptors {
     static constexpr auto n_params = std::tuple_size_v<decltype(M::params)>;
     static constexpr auto n_state = std::tuple_size_v<decltype(M::state)>;
     static constexpr std::uint32_t state_size = total_state_size(M::state);
@@ -300,7 +304,8 @@ template <class M> struct Descriptors {
     template <class T, std::size_t N>
     static constexpr std::array<const T *, N> pointers(const std::array<T, N> &a) {
         std::array<const T *, N> out{};
-        for (std::size_t i = 0; i < N; ++i) out[i] = &a[i];
+        for (std::size_t i = 0; i < N; ++i)
+            out[i] = &a[i];
         return out;
     }
     static constexpr std::array<const talus_param_desc *, n_params> param_ptrs = pointers(params);
@@ -380,7 +385,8 @@ template <class M> struct Descriptors {
 
                 PointOut out;
                 if (q1 != q0)
-                    for (std::uint32_t j = 0; j < state_size; ++j) q1[j] = q0[j];
+                    for (std::uint32_t j = 0; j < state_size; ++j)
+                        q1[j] = q0[j];
                 out.state = std::span<double>(q1, state_size);
                 out.tangent = want_t ? &tangent : nullptr;
                 // From here on the start state may already be overwritten
@@ -398,8 +404,9 @@ template <class M> struct Descriptors {
                                 "tangent at point " +
                                     std::to_string(i));
                 if (want_c && !(c > 0.0))
-                    return fail(err, i, "model returned a non-positive wave speed at point " +
-                                            std::to_string(i));
+                    return fail(err, i,
+                                "model returned a non-positive wave speed at point " +
+                                    std::to_string(i));
                 Eigen::Map<Vec6>(b->stress_end + 6 * k) = out.stress;
                 if (want_c) b->wave_speed[k] = c;
                 if (want_t) Eigen::Map<RowMat6>(b->tangent + 36 * k) = tangent;
@@ -412,8 +419,8 @@ template <class M> struct Descriptors {
             write_message(err, e.what());
             return TALUS_STATUS_CUT_STEP;
         } catch (const std::exception &e) {
-            return fail(err, i, std::string("exception at point ") + std::to_string(i) + ": " +
-                                    e.what());
+            return fail(err, i,
+                        std::string("exception at point ") + std::to_string(i) + ": " + e.what());
         } catch (...) {
             return fail(err, i, "unknown exception at point " + std::to_string(i));
         }
@@ -438,7 +445,8 @@ template <class M> struct Descriptors {
     };
 };
 
-template <class... Models> struct Library {
+template <class... Models>
+struct Library {
     static constexpr std::array<const talus_model *, sizeof...(Models)> models = {
         &Descriptors<Models>::model...};
 
@@ -458,7 +466,8 @@ template <class... Models> struct Library {
                             std::to_string(TALUS_ABI_VERSION_MAJOR) + "." +
                             std::to_string(TALUS_ABI_VERSION_MINOR) + ", the host speaks ABI " +
                             std::to_string(host->abi_major) + "." +
-                            std::to_string(host->abi_minor) + ": rebuild it against this host's SDK");
+                            std::to_string(host->abi_minor) +
+                            ": rebuild it against this host's SDK");
         *out = &lib;
         return TALUS_STATUS_OK;
     }
