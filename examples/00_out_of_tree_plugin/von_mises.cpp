@@ -64,9 +64,11 @@ struct VonMises {
         }
         const double p = (s[0] + s[1] + s[2]) / 3.0;
         Vec6 dev = s;
-        for (int i = 0; i < 3; ++i) dev[i] -= p;
+        for (int i = 0; i < 3; ++i)
+            dev[i] -= p;
         // Frobenius norm of the deviator: shear components count twice.
-        const double norm = std::sqrt(dev.head<3>().squaredNorm() + 2.0 * dev.tail<3>().squaredNorm());
+        const double norm =
+            std::sqrt(dev.head<3>().squaredNorm() + 2.0 * dev.tail<3>().squaredNorm());
         const double eps_p = out.state[0];
         const double f = norm - std::sqrt(2.0 / 3.0) * (sy + H * eps_p);
 
