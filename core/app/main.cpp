@@ -6,6 +6,8 @@
 #include <talus/error.hpp>
 #include <talus/plugin_loader.hpp>
 #include <talus/point_driver.hpp>
+#include <talus/run.hpp>
+#include <talus/scenario.hpp>
 #include <talus/yaml_input.hpp>
 
 #include <CLI/CLI.hpp>
@@ -13,6 +15,7 @@
 
 #include <iostream>
 #include <sstream>
+#include <unistd.h>
 
 namespace {
 
@@ -88,6 +91,26 @@ int main(int argc, char **argv) {
                    "Directory searched for plugins before TALUS_PLUGIN_PATH (repeatable)")
         ->type_name("DIR");
 
+    // talus run / validate
+    auto *run = app.add_subcommand("run", "Run an MPM scenario (YAML)");
+    std::string scenario_file, output_dir;
+    bool force = false;
+    int threads = 0;
+    run->add_option("scenario", scenario_file, "Scenario file (YAML)")
+        ->required()
+        ->type_name("SCENARIO.yaml");
+    run->add_option("--output-dir", output_dir,
+                    "Where to write results (default: a folder named after the scenario, here)")
+        ->type_name("DIR");
+    run->add_flag("--force", force, "Overwrite the files of a previous run in the output folder");
+    run->add_option("--threads", threads, "Number of threads (default: OpenMP's, all cores)")
+        ->check(CLI::PositiveNumber);
+    auto *validate = app.add_subcommand("validate", "Check a scenario file without running it");
+    std::string validate_file;
+    validate->add_option("scenario", validate_file, "Scenario file (YAML)")
+        ->required()
+        ->type_name("SCENARIO.yaml");
+
     // talus point
     auto *point =
         app.add_subcommand("point", "Run a single material-point test (driver case YAML)");
@@ -160,6 +183,29 @@ int main(int argc, char **argv) {
         std::vector<std::filesystem::path> dirs(plugin_path.begin(), plugin_path.end());
         talus::PluginRegistry registry(dirs);
 
+        if (run->parsed()) {
+            const talus::yaml::Node root = talus::yaml::load_file(scenario_file);
+            talus::Scenario sc = talus::read_scenario(root, registry);
+            talus::RunOptions ro;
+            ro.output_dir = output_dir;
+            ro.force = force;
+            ro.progress = isatty(2) != 0;
+            ro.solver.threads = threads;
+            const talus::RunSummary rs = talus::run_scenario(sc, ro, std::cerr);
+            std::cerr << fmt::format(
+                "talus: {} steps to t = {:.6g} s, {} particles, {:.1f} s wall, {:.3g} "
+                "particle-steps/s; {} output(s) in {}\n",
+                rs.steps, rs.time, rs.particles, rs.seconds, rs.particle_steps_per_second,
+                rs.outputs, rs.output_dir.string());
+            return 0;
+        }
+        if (validate->parsed()) {
+            const talus::yaml::Node root = talus::yaml::load_file(validate_file);
+            const talus::Scenario sc = talus::read_scenario(root, registry);
+            std::cout << fmt::format("{}: valid ({}D, {} material(s), {} group(s))\n",
+                                     validate_file, sc.dim, sc.materials.size(), sc.groups.size());
+            return 0;
+        }
         if (point->parsed()) {
             const talus::yaml::Node root = talus::yaml::load_file(case_file);
             const talus::PointCase pc = talus::read_point_case(root, registry);

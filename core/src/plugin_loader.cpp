@@ -362,32 +362,38 @@ MaterialInstance::Result MaterialInstance::update(talus_batch &b) const noexcept
         return r;
     }
     // The host never trusts outputs blindly: a NaN that entered the solver
-    // would spread silently through the grid.
+    // would spread silently through the grid. x * 0 is NaN exactly for NaN
+    // and infinities, so one branch-free sum screens the whole batch; the
+    // point is looked for only when it trips.
     const std::size_t n = b.n_points, ns = b.state_size;
     const bool want_c = (b.flags & TALUS_BATCH_WANT_WAVE_SPEED) != 0;
     const bool want_t = (b.flags & TALUS_BATCH_WANT_TANGENT) != 0;
+    auto probe = [](const double *p, std::size_t count) {
+        double acc = 0.0;
+        for (std::size_t k = 0; k < count; ++k)
+            acc += p[k] * 0.0;
+        return acc;
+    };
+    double screen = probe(b.stress_end, 6 * n) + (ns ? probe(b.state_end, ns * n) : 0.0) +
+                    (want_t ? probe(b.tangent, 36 * n) : 0.0);
+    bool speeds_ok = true;
+    if (want_c)
+        for (std::size_t i = 0; i < n; ++i)
+            speeds_ok &= b.wave_speed[i] > 0.0 && b.wave_speed[i] < INFINITY;
+    if (screen == 0.0 && speeds_ok) return r;
     for (std::size_t i = 0; i < n; ++i) {
-        bool good = true;
-        for (std::size_t k = 0; k < 6; ++k)
-            good &= std::isfinite(b.stress_end[6 * i + k]);
-        for (std::size_t k = 0; k < ns; ++k)
-            good &= std::isfinite(b.state_end[ns * i + k]);
-        if (want_c) good &= std::isfinite(b.wave_speed[i]) && b.wave_speed[i] > 0.0;
-        if (want_t)
-            for (std::size_t k = 0; k < 36; ++k)
-                good &= std::isfinite(b.tangent[36 * i + k]);
-        if (!good) {
-            r.status = TALUS_STATUS_FAILED;
-            r.host_detected = true;
-            r.point = static_cast<std::int64_t>(i);
-            r.message =
-                fmt::format("returned status OK but a non-finite {} at point {}",
-                            want_c && !(std::isfinite(b.wave_speed[i]) && b.wave_speed[i] > 0.0)
-                                ? "or non-positive wave speed"
-                                : "stress, state or tangent",
-                            i);
-            return r;
-        }
+        const bool bad_c = want_c && !(b.wave_speed[i] > 0.0 && b.wave_speed[i] < INFINITY);
+        const bool bad = probe(b.stress_end + 6 * i, 6) != 0.0 ||
+                         (ns && probe(b.state_end + ns * i, ns) != 0.0) ||
+                         (want_t && probe(b.tangent + 36 * i, 36) != 0.0) || bad_c;
+        if (!bad) continue;
+        r.status = TALUS_STATUS_FAILED;
+        r.host_detected = true;
+        r.point = static_cast<std::int64_t>(i);
+        r.message =
+            fmt::format("returned status OK but a non-finite {} at point {}",
+                        bad_c ? "or non-positive wave speed" : "stress, state or tangent", i);
+        return r;
     }
     return r;
 }

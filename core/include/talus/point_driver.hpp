@@ -14,6 +14,7 @@
 
 #include <talus/material_spec.hpp>
 #include <talus/plugin_loader.hpp>
+#include <talus/time_function.hpp>
 #include <talus/yaml_input.hpp>
 
 #include <Eigen/Core>
@@ -25,21 +26,6 @@
 #include <vector>
 
 namespace talus {
-
-// A piecewise-linear function of time through (t_i, v_i), constant beyond
-// its ends. A single point is a constant.
-class PiecewiseLinear {
-  public:
-    PiecewiseLinear() = default;
-    explicit PiecewiseLinear(std::vector<std::array<double, 2>> points);
-    double operator()(double t) const;
-    // Reads a number (constant) or a sequence of [t, value] pairs with
-    // strictly increasing t.
-    static PiecewiseLinear read(const yaml::Node &node);
-
-  private:
-    std::vector<std::array<double, 2>> points_{{0.0, 0.0}};
-};
 
 struct PointCase {
     MaterialSpec material;

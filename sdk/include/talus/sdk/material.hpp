@@ -206,16 +206,23 @@ class ParamValues {
     std::span<const double> values_;
 };
 
-// Inputs of one point over one increment (copies: out may alias the batch).
+using RowMat3 = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
+
+// Inputs of one point over one increment. The stress and the state are
+// copies (the host may update them in place, so the batch's arrays can be
+// overwritten while the model runs); the other inputs are read-only views
+// of the batch, which the host never aliases with an output.
 struct PointIn {
+    PointIn(const double *de, const double *F0, const double *F1, const double *s0)
+        : strain_increment(de), F_start(F0), F_end(F1), stress(Eigen::Map<const Vec6>(s0)) {}
     double time = 0.0;
     double dt = 0.0;
-    Vec6 strain_increment; // engineering shear
-    Mat3 F_start;
-    Mat3 F_end;
+    Eigen::Map<const Vec6> strain_increment; // engineering shear
+    Eigen::Map<const RowMat3> F_start;
+    Eigen::Map<const RowMat3> F_end;
     double density = 0.0;
     Vec6 stress;                   // Cauchy at the start of the increment
-    std::span<const double> state; // at the start of the increment
+    std::span<const double> state; // at the start of the increment (copy)
 };
 
 // Outputs of one point. `state` starts as a copy of the start state, so a
@@ -262,6 +269,10 @@ inline double nonfinite_probe(const double *p, std::size_t n) {
         acc += p[i] * 0.0;
     return acc;
 }
+
+// State values per point the batch loop copies on the stack for in-place
+// updates.
+inline constexpr std::uint32_t kMaxInlineState = 64;
 
 template <class M>
 struct Descriptors {
@@ -352,8 +363,11 @@ struct Descriptors {
              (want_c && !b->wave_speed) || (want_t && !b->tangent)))
             return fail(err, -1, "update: a required batch array is null");
 
+        if (state_size > kMaxInlineState && b->state_end == b->state_start)
+            return fail(err, -1,
+                        "update: in-place update of more than 64 state values per point is not "
+                        "supported by this SDK; pass separate state arrays");
         const M &model = *reinterpret_cast<const M *>(inst);
-        using RowMat3 = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
         using RowMat6 = Eigen::Matrix<double, 6, 6, Eigen::RowMajor>;
         Mat6 tangent;
         std::int64_t i = 0;
@@ -373,15 +387,20 @@ struct Descriptors {
                                 "density) or non-positive density at point " +
                                     std::to_string(i));
 
-                PointIn in;
+                PointIn in(de, b->F_start + 9 * k, b->F_end + 9 * k, s0);
                 in.time = b->time;
                 in.dt = b->dt;
-                in.strain_increment = Eigen::Map<const Vec6>(de);
-                in.F_start = Eigen::Map<const RowMat3>(b->F_start + 9 * k);
-                in.F_end = Eigen::Map<const RowMat3>(b->F_end + 9 * k);
                 in.density = b->density[k];
-                in.stress = Eigen::Map<const Vec6>(s0);
-                in.state = std::span<const double>(q0, state_size);
+                // With an in-place update the start state is copied aside
+                // before the model may overwrite it.
+                double state_copy[kMaxInlineState];
+                if (q1 == q0 && state_size > 0) {
+                    for (std::uint32_t j = 0; j < state_size; ++j)
+                        state_copy[j] = q0[j];
+                    in.state = std::span<const double>(state_copy, state_size);
+                } else {
+                    in.state = std::span<const double>(q0, state_size);
+                }
 
                 PointOut out;
                 if (q1 != q0)

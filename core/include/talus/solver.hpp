@@ -1,0 +1,120 @@
+// The explicit MPM solver: particles, background grid and the grid cycle
+// (seed 000, phases 1-4), in 2D plane strain and 3D. docs/theory.md walks
+// through it equation by equation.
+#pragma once
+
+#include <talus/scenario.hpp>
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace talus {
+
+// The particles of one material, structure of arrays. Tensors use the ABI's
+// layouts (Voigt stress, row-major F) so the plugin reads them in place.
+struct ParticleSet {
+    std::size_t material = 0; // index into Scenario::materials
+    const MaterialInstance *instance = nullptr;
+    bool finite_strain = false;
+    std::uint32_t state_size = 0;
+    double rho0 = 0.0;
+    std::size_t n = 0;
+
+    std::vector<std::int64_t> id;    // stable particle id (output, probes)
+    std::vector<std::int32_t> group; // index into Scenario::groups
+    std::array<std::vector<double>, 3> x, x0, v, dx;
+    std::vector<double> mass, vol0, lp; // lp: GIMP half-width (cells)
+    std::vector<double> F, F_new;        // 9 per point, row-major
+    std::vector<double> J, rho;
+    std::vector<double> stress; // 6 per point, Voigt, Cauchy, tension +
+    std::vector<double> state;  // state_size per point
+    std::vector<double> de;     // strain increment, 6 per point
+    std::vector<double> c;      // wave speed from the plugin
+    std::vector<double> L;      // velocity gradient, 9 per point
+    std::vector<double> C;      // affine velocity matrix for APIC / TPIC, 9 per point
+    std::vector<double> work;   // accumulated stress work, J
+    std::vector<double> divv;   // velocity divergence (cell-averaged dilation)
+    std::vector<std::uint32_t> load_mask, fix_mask; // bit k: loads[k] / particle_velocities[k]
+
+    void resize(std::size_t count);
+    // Moves particle `from` to slot `to` (for compaction and sorting).
+    void move(std::size_t from, std::size_t to);
+};
+
+struct Diagnostics {
+    long step = 0;
+    double time = 0.0, dt = 0.0;
+    double mass = 0.0;
+    std::array<double, 3> momentum{0, 0, 0};
+    double kinetic_energy = 0.0;
+    double strain_energy = 0.0; // accumulated stress work (= stored energy for elastic materials)
+    std::array<double, 3> angular_momentum{0, 0, 0}; // about the origin, z only in 2D
+    std::size_t particles = 0;
+    long removed = 0;   // particles removed after leaving the grid
+    long cut_steps = 0; // plugin cut-step requests honoured by sub-stepping
+};
+
+struct SolverOptions {
+    int threads = 0;       // 0: OpenMP's default
+    int batch_size = 128;  // points per plugin call
+    int sort_every = 25;   // steps between re-sorting particles by cell
+};
+
+class Simulation {
+  public:
+    // Generates the particles of every group and the initial state; calls
+    // each plugin once on the initial state to get wave speeds.
+    Simulation(Scenario &scenario, SolverOptions options = {});
+    ~Simulation();
+    Simulation(const Simulation &) = delete;
+    Simulation &operator=(const Simulation &) = delete;
+
+    // Advances one explicit step of at most `max_dt` (also limited by the
+    // CFL condition or the fixed dt). Throws talus::Error, naming plugin,
+    // group, particle and step, when a material fails, a particle inverts,
+    // or particles leave the grid under the "stop" policy.
+    void step(double max_dt);
+
+    double time() const { return time_; }
+    long steps() const { return step_; }
+    double last_dt() const { return last_dt_; }
+    // dt = cfl h / max(c_p + |v_p|) for the current state (seed 000 eq. 45).
+    double critical_dt() const;
+    Diagnostics diagnostics() const;
+    const std::vector<ParticleSet> &sets() const { return sets_; }
+    std::vector<ParticleSet> &sets() { return sets_; }
+    const Scenario &scenario() const { return sc_; }
+    std::size_t particle_count() const;
+    // Total nodal mass of the last step's P2G (equals the particle mass by
+    // partition of unity).
+    double grid_mass() const;
+    // Wall time spent in each phase of the cycle so far (for profiling).
+    static constexpr int kPhases = 7;
+    std::array<double, kPhases> phase_seconds() const;
+    static const char *phase_name(int k);
+    // Threads the solver's parallel loops use.
+    static int max_threads();
+
+    // Warnings issued so far (fixed dt above the limit, ...), for the log.
+    const std::vector<std::string> &warnings() const { return warnings_; }
+
+    struct Impl;
+
+  private:
+    Scenario &sc_;
+    SolverOptions opt_;
+    std::vector<ParticleSet> sets_;
+    std::unique_ptr<Impl> impl_;
+    double time_ = 0.0, last_dt_ = 0.0;
+    long step_ = 0;
+    long removed_ = 0;
+    long cut_steps_ = 0;
+    bool warned_dt_ = false;
+    std::vector<std::string> warnings_;
+    friend struct Impl;
+};
+
+} // namespace talus
