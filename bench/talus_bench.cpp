@@ -14,7 +14,6 @@
 #include <string>
 #include <vector>
 
-
 namespace {
 
 struct Case {
@@ -28,23 +27,28 @@ struct Case {
 std::string block_yaml(int dim, int nx, int ny, int nz, int ppc, double h) {
     const double lx = nx * h, ly = ny * h, lz = nz * h;
     const std::string origin = dim == 2 ? "[0, 0]" : "[0, 0, 0]";
-    const std::string size = dim == 2 ? fmt::format("[{}, {}]", lx + 2 * h, ly + 2 * h)
-                                      : fmt::format("[{}, {}, {}]", lx + 2 * h, ly + 2 * h, lz + 2 * h);
-    const std::string bmin = dim == 2 ? fmt::format("[{}, {}]", h, h) : fmt::format("[{}, {}, {}]", h, h, h);
+    const std::string size = dim == 2
+                                 ? fmt::format("[{}, {}]", lx + 2 * h, ly + 2 * h)
+                                 : fmt::format("[{}, {}, {}]", lx + 2 * h, ly + 2 * h, lz + 2 * h);
+    const std::string bmin =
+        dim == 2 ? fmt::format("[{}, {}]", h, h) : fmt::format("[{}, {}, {}]", h, h, h);
     const std::string bmax = dim == 2 ? fmt::format("[{}, {}]", h + lx, h + ly)
                                       : fmt::format("[{}, {}, {}]", h + lx, h + ly, h + lz);
     const std::string g = dim == 2 ? "[0, -9.81]" : "[0, 0, -9.81]";
     const std::string floor = dim == 2 ? "y-" : "z-";
-    return fmt::format("talus: 1\ndimension: {}\n"
-                       "grid: {{origin: {}, size: {}, cell: {}}}\n"
-                       "materials:\n  soil: {{model: linear_elastic, density: 2000, youngs_modulus: 1.0e7, "
-                       "poisson_ratio: 0.3}}\n"
-                       "groups:\n  block: {{material: soil, particles_per_cell: {}, shape: {{box: {{min: {}, max: {}}}}}}}\n"
-                       "boundaries: {{{}: slip}}\n"
-                       "gravity: {}\n"
-                       "solver: {{scheme: usl, transfer: {{type: flip, alpha: 0.99}}, shape: bspline2, cfl: 0.3}}\n"
-                       "time: {{end: 1.0}}\n",
-                       dim, origin, size, h, ppc, bmin, bmax, floor, g);
+    return fmt::format(
+        "talus: 1\ndimension: {}\n"
+        "grid: {{origin: {}, size: {}, cell: {}}}\n"
+        "materials:\n  soil: {{model: linear_elastic, density: 2000, youngs_modulus: 1.0e7, "
+        "poisson_ratio: 0.3}}\n"
+        "groups:\n  block: {{material: soil, particles_per_cell: {}, shape: {{box: {{min: {}, max: "
+        "{}}}}}}}\n"
+        "boundaries: {{{}: slip}}\n"
+        "gravity: {}\n"
+        "solver: {{scheme: usl, transfer: {{type: flip, alpha: 0.99}}, shape: bspline2, cfl: "
+        "0.3}}\n"
+        "time: {{end: 1.0}}\n",
+        dim, origin, size, h, ppc, bmin, bmax, floor, g);
 }
 
 } // namespace
@@ -62,13 +66,19 @@ int main(int argc, char **argv) {
             }
             return argv[++i];
         };
-        if (a == "--steps") steps = std::atoi(next().c_str());
-        else if (a == "--repeat") repeat = std::atoi(next().c_str());
-        else if (a == "--threads") threads = std::atoi(next().c_str());
-        else if (a == "--case") only = next();
-        else if (a == "--profile") profile = true;
+        if (a == "--steps")
+            steps = std::atoi(next().c_str());
+        else if (a == "--repeat")
+            repeat = std::atoi(next().c_str());
+        else if (a == "--threads")
+            threads = std::atoi(next().c_str());
+        else if (a == "--case")
+            only = next();
+        else if (a == "--profile")
+            profile = true;
         else {
-            std::fprintf(stderr, "usage: talus_bench [--steps N] [--repeat R] [--case NAME] [--threads T] [--profile]\n");
+            std::fprintf(stderr, "usage: talus_bench [--steps N] [--repeat R] [--case NAME] "
+                                 "[--threads T] [--profile]\n");
             return 2;
         }
     }
@@ -93,12 +103,15 @@ int main(int argc, char **argv) {
             talus::SolverOptions so;
             so.threads = threads;
             talus::Simulation sim(sc, so);
-            for (int w = 0; w < 2; ++w) sim.step(1.0); // warm caches and the allocator
+            for (int w = 0; w < 2; ++w)
+                sim.step(1.0); // warm caches and the allocator
             double best = 1e300;
             for (int r = 0; r < repeat; ++r) {
                 const auto t0 = std::chrono::steady_clock::now();
-                for (int s = 0; s < steps; ++s) sim.step(1.0);
-                const double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+                for (int s = 0; s < steps; ++s)
+                    sim.step(1.0);
+                const double sec =
+                    std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
                 best = std::min(best, sec);
             }
             const double n = static_cast<double>(sim.particle_count());
@@ -106,13 +119,17 @@ int main(int argc, char **argv) {
             if (profile) {
                 const auto ph = sim.phase_seconds();
                 double total = 0.0;
-                for (double v : ph) total += v;
+                for (double v : ph)
+                    total += v;
                 for (int k = 0; k < talus::Simulation::kPhases; ++k)
-                    std::fprintf(stderr, "  %-28s %6.1f %%\n", talus::Simulation::phase_name(k), 100.0 * ph[static_cast<std::size_t>(k)] / total);
+                    std::fprintf(stderr, "  %-28s %6.1f %%\n", talus::Simulation::phase_name(k),
+                                 100.0 * ph[static_cast<std::size_t>(k)] / total);
             }
-            std::printf("{\"case\": \"%s\", \"dim\": %d, \"particles\": %zu, \"steps\": %d, \"threads\": %d, "
+            std::printf("{\"case\": \"%s\", \"dim\": %d, \"particles\": %zu, \"steps\": %d, "
+                        "\"threads\": %d, "
                         "\"seconds\": %.4f, \"particle_steps_per_second\": %.4g}\n",
-                        c.name.c_str(), c.dim, sim.particle_count(), steps, used, best, n * steps / best);
+                        c.name.c_str(), c.dim, sim.particle_count(), steps, used, best,
+                        n * steps / best);
             std::fflush(stdout);
         }
     } catch (const std::exception &e) {

@@ -30,7 +30,8 @@ struct VtkArray {
     std::string name, type;
     int components = 1;
     std::vector<char> bytes;
-    template <class T> void put(T v) {
+    template <class T>
+    void put(T v) {
         const char *p = reinterpret_cast<const char *>(&v);
         bytes.insert(bytes.end(), p, p + sizeof(T));
     }
@@ -38,11 +39,14 @@ struct VtkArray {
 
 } // namespace
 
-void write_vtu(const fs::path &file, const Simulation &sim, const std::vector<std::string> &state_fields) {
+void write_vtu(const fs::path &file, const Simulation &sim,
+               const std::vector<std::string> &state_fields) {
     const Scenario &sc = sim.scenario();
     const int D = sc.dim;
     const std::size_t n = sim.particle_count();
     std::vector<VtkArray> point_data;
+    // add() hands out references into point_data: no reallocation allowed.
+    point_data.reserve(9 + state_fields.size());
     auto add = [&](const std::string &name, const std::string &type, int comps) -> VtkArray & {
         point_data.push_back(VtkArray{name, type, comps, {}});
         point_data.back().bytes.reserve(n * static_cast<std::size_t>(comps) * 8);
@@ -89,7 +93,8 @@ void write_vtu(const fs::path &file, const Simulation &sim, const std::vector<st
             const sdk::Vec6 v6 = Eigen::Map<const sdk::Vec6>(&s.stress[6 * p]);
             const sdk::Mat3 m = sdk::stress_to_matrix(v6);
             for (int a = 0; a < 3; ++a)
-                for (int b = 0; b < 3; ++b) sig.put<double>(m(a, b));
+                for (int b = 0; b < 3; ++b)
+                    sig.put<double>(m(a, b));
             pp.put<double>(sdk::mean_pressure(v6));
             qq.put<double>(sdk::von_mises(v6));
             vol.put<double>(s.J[p] * s.vol0[p]);
@@ -99,14 +104,15 @@ void write_vtu(const fs::path &file, const Simulation &sim, const std::vector<st
                 for (const auto &v : model.state())
                     if (v.name == f.name) info = &v;
                 for (std::uint32_t k = 0; k < f.size; ++k)
-                    point_data[f.array].put<double>(info && k < info->size
-                                                        ? s.state[s.state_size * p + info->offset + k]
-                                                        : std::numeric_limits<double>::quiet_NaN());
+                    point_data[f.array].put<double>(
+                        info && k < info->size ? s.state[s.state_size * p + info->offset + k]
+                                               : std::numeric_limits<double>::quiet_NaN());
             }
         }
     }
     // One vertex cell per particle.
-    VtkArray conn{"connectivity", "Int64", 1, {}}, offs{"offsets", "Int64", 1, {}}, types{"types", "UInt8", 1, {}};
+    VtkArray conn{"connectivity", "Int64", 1, {}}, offs{"offsets", "Int64", 1, {}},
+        types{"types", "UInt8", 1, {}};
     for (std::size_t i = 0; i < n; ++i) {
         conn.put<std::int64_t>(static_cast<std::int64_t>(i));
         offs.put<std::int64_t>(static_cast<std::int64_t>(i + 1));
@@ -116,10 +122,11 @@ void write_vtu(const fs::path &file, const Simulation &sim, const std::vector<st
     std::ostringstream xml;
     std::uint64_t offset = 0;
     auto header = [&](const VtkArray &a, bool named) {
-        xml << fmt::format("        <DataArray type=\"{}\"{} NumberOfComponents=\"{}\" format=\"appended\" "
-                           "offset=\"{}\"/>\n",
-                           a.type, named ? fmt::format(" Name=\"{}\"", a.name) : std::string(), a.components,
-                           offset);
+        xml << fmt::format(
+            "        <DataArray type=\"{}\"{} NumberOfComponents=\"{}\" format=\"appended\" "
+            "offset=\"{}\"/>\n",
+            a.type, named ? fmt::format(" Name=\"{}\"", a.name) : std::string(), a.components,
+            offset);
         offset += sizeof(std::uint64_t) + a.bytes.size();
     };
     xml << "<?xml version=\"1.0\"?>\n"
@@ -128,14 +135,16 @@ void write_vtu(const fs::path &file, const Simulation &sim, const std::vector<st
         << "  <UnstructuredGrid>\n"
         << fmt::format("    <Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">\n", n, n)
         << "      <PointData>\n";
-    for (const VtkArray &a : point_data) header(a, true);
+    for (const VtkArray &a : point_data)
+        header(a, true);
     xml << "      </PointData>\n      <Points>\n";
     header(points, false);
     xml << "      </Points>\n      <Cells>\n";
     header(conn, true);
     header(offs, true);
     header(types, true);
-    xml << "      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n  <AppendedData encoding=\"raw\">\n   _";
+    xml << "      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n  <AppendedData "
+           "encoding=\"raw\">\n   _";
 
     const fs::path tmp = file.string() + ".tmp";
     {
@@ -147,7 +156,8 @@ void write_vtu(const fs::path &file, const Simulation &sim, const std::vector<st
             out.write(reinterpret_cast<const char *>(&len), sizeof len);
             out.write(a.bytes.data(), static_cast<std::streamsize>(a.bytes.size()));
         };
-        for (const VtkArray &a : point_data) blob(a);
+        for (const VtkArray &a : point_data)
+            blob(a);
         blob(points);
         blob(conn);
         blob(offs);
@@ -190,16 +200,19 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     // silently.
     std::error_code ec;
     if (fs::exists(dir, ec)) {
-        if (!fs::is_directory(dir, ec)) throw Error(fmt::format("{}: exists and is not a directory", dir.string()));
+        if (!fs::is_directory(dir, ec))
+            throw Error(fmt::format("{}: exists and is not a directory", dir.string()));
         std::vector<fs::path> previous;
         for (const auto &e : fs::directory_iterator(dir))
             if (is_own_file(e.path())) previous.push_back(e.path());
         if (!previous.empty()) {
             if (!opt.force)
-                throw Error(fmt::format("{}: holds the output of a previous run ({} and {} more file(s)); "
-                                        "pass --force to overwrite it, or choose another --output-dir",
-                                        dir.string(), previous.front().filename().string(), previous.size() - 1));
-            for (const auto &p : previous) fs::remove(p);
+                throw Error(fmt::format(
+                    "{}: holds the output of a previous run ({} and {} more file(s)); "
+                    "pass --force to overwrite it, or choose another --output-dir",
+                    dir.string(), previous.front().filename().string(), previous.size() - 1));
+            for (const auto &p : previous)
+                fs::remove(p);
         }
     }
     Simulation sim(sc, opt.solver);
@@ -211,7 +224,8 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     if (sc.output.all_flagged_state)
         for (const auto &m : sc.materials)
             for (const auto &v : m.spec.model->state())
-                if (v.output() && std::find(state_fields.begin(), state_fields.end(), v.name) == state_fields.end())
+                if (v.output() && std::find(state_fields.begin(), state_fields.end(), v.name) ==
+                                      state_fields.end())
                     state_fields.push_back(v.name);
 
     // Probes: the particle nearest each point at t = 0.
@@ -224,7 +238,9 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
                 for (std::size_t k = 0; k < s.n; ++k) {
                     double d2 = 0.0;
                     for (int d = 0; d < sc.dim; ++d)
-                        d2 += std::pow(s.x[static_cast<std::size_t>(d)][k] - p.point[static_cast<std::size_t>(d)], 2);
+                        d2 += std::pow(s.x[static_cast<std::size_t>(d)][k] -
+                                           p.point[static_cast<std::size_t>(d)],
+                                       2);
                     if (d2 < best) {
                         best = d2;
                         t.particle = s.id[k];
@@ -235,19 +251,24 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     }
     const char *axes = "xyz";
     std::ofstream diag(dir / "diagnostics.csv"), prob;
-    diag << "step,time,dt,mass,momentum_x,momentum_y,momentum_z,kinetic_energy,strain_energy,"
-            "angular_momentum_x,angular_momentum_y,angular_momentum_z,particles,removed,cut_steps\n";
+    diag
+        << "step,time,dt,mass,momentum_x,momentum_y,momentum_z,kinetic_energy,strain_energy,"
+           "angular_momentum_x,angular_momentum_y,angular_momentum_z,particles,removed,cut_steps\n";
     if (!probes.empty()) {
         prob.open(dir / "probes.csv");
         prob << "time";
         for (const auto &t : probes) {
             const std::string &nm = t.probe->name;
-            for (int d = 0; d < sc.dim; ++d) prob << ',' << nm << '.' << axes[d];
+            for (int d = 0; d < sc.dim; ++d)
+                prob << ',' << nm << '.' << axes[d];
             if (t.probe->kind == Probe::Kind::particle)
-                for (int d = 0; d < sc.dim; ++d) prob << ',' << nm << ".u" << axes[d];
-            for (int d = 0; d < sc.dim; ++d) prob << ',' << nm << ".v" << axes[d];
+                for (int d = 0; d < sc.dim; ++d)
+                    prob << ',' << nm << ".u" << axes[d];
+            for (int d = 0; d < sc.dim; ++d)
+                prob << ',' << nm << ".v" << axes[d];
             if (t.probe->kind == Probe::Kind::particle)
-                for (const char *c : {"xx", "yy", "zz", "xy", "yz", "xz"}) prob << ',' << nm << ".sig_" << c;
+                for (const char *c : {"xx", "yy", "zz", "xy", "yz", "xz"})
+                    prob << ',' << nm << ".sig_" << c;
         }
         prob << '\n';
     }
@@ -256,11 +277,13 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     int outputs = 0;
     auto write_outputs = [&]() {
         const Diagnostics dg = sim.diagnostics();
-        diag << fmt::format("{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},"
+        diag << fmt::format("{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:."
+                            "17g},{:.17g},{:.17g},"
                             "{},{},{}\n",
-                            dg.step, dg.time, dg.dt, dg.mass, dg.momentum[0], dg.momentum[1], dg.momentum[2],
-                            dg.kinetic_energy, dg.strain_energy, dg.angular_momentum[0], dg.angular_momentum[1],
-                            dg.angular_momentum[2], dg.particles, dg.removed, dg.cut_steps);
+                            dg.step, dg.time, dg.dt, dg.mass, dg.momentum[0], dg.momentum[1],
+                            dg.momentum[2], dg.kinetic_energy, dg.strain_energy,
+                            dg.angular_momentum[0], dg.angular_momentum[1], dg.angular_momentum[2],
+                            dg.particles, dg.removed, dg.cut_steps);
         diag.flush();
         if (!probes.empty()) {
             prob << fmt::format("{:.17g}", sim.time());
@@ -271,14 +294,23 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
                         for (std::size_t k = 0; k < s.n && !found; ++k)
                             if (s.id[k] == t.particle) {
                                 found = true;
-                                for (int d = 0; d < sc.dim; ++d) prob << fmt::format(",{:.17g}", s.x[static_cast<std::size_t>(d)][k]);
                                 for (int d = 0; d < sc.dim; ++d)
-                                    prob << fmt::format(",{:.17g}", s.x[static_cast<std::size_t>(d)][k] - s.x0[static_cast<std::size_t>(d)][k]);
-                                for (int d = 0; d < sc.dim; ++d) prob << fmt::format(",{:.17g}", s.v[static_cast<std::size_t>(d)][k]);
-                                for (int c = 0; c < 6; ++c) prob << fmt::format(",{:.17g}", s.stress[6 * k + static_cast<std::size_t>(c)]);
+                                    prob << fmt::format(",{:.17g}",
+                                                        s.x[static_cast<std::size_t>(d)][k]);
+                                for (int d = 0; d < sc.dim; ++d)
+                                    prob << fmt::format(",{:.17g}",
+                                                        s.x[static_cast<std::size_t>(d)][k] -
+                                                            s.x0[static_cast<std::size_t>(d)][k]);
+                                for (int d = 0; d < sc.dim; ++d)
+                                    prob << fmt::format(",{:.17g}",
+                                                        s.v[static_cast<std::size_t>(d)][k]);
+                                for (int c = 0; c < 6; ++c)
+                                    prob << fmt::format(
+                                        ",{:.17g}", s.stress[6 * k + static_cast<std::size_t>(c)]);
                             }
                     if (!found) // removed after leaving the grid
-                        for (int c = 0; c < 3 * sc.dim + 6; ++c) prob << ",nan";
+                        for (int c = 0; c < 3 * sc.dim + 6; ++c)
+                            prob << ",nan";
                 } else {
                     double m = 0.0, x[3] = {0, 0, 0}, v[3] = {0, 0, 0};
                     for (const auto &s : sim.sets())
@@ -290,8 +322,10 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
                                     v[d] += s.mass[k] * s.v[static_cast<std::size_t>(d)][k];
                                 }
                             }
-                    for (int d = 0; d < sc.dim; ++d) prob << fmt::format(",{:.17g}", m > 0 ? x[d] / m : NAN);
-                    for (int d = 0; d < sc.dim; ++d) prob << fmt::format(",{:.17g}", m > 0 ? v[d] / m : NAN);
+                    for (int d = 0; d < sc.dim; ++d)
+                        prob << fmt::format(",{:.17g}", m > 0 ? x[d] / m : NAN);
+                    for (int d = 0; d < sc.dim; ++d)
+                        prob << fmt::format(",{:.17g}", m > 0 ? v[d] / m : NAN);
                 }
             }
             prob << '\n';
@@ -307,7 +341,8 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
             c << "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"1.0\" "
                  "byte_order=\"LittleEndian\">\n  <Collection>\n";
             for (const auto &[t, f] : pvd)
-                c << fmt::format("    <DataSet timestep=\"{:.17g}\" part=\"0\" file=\"{}\"/>\n", t, f);
+                c << fmt::format("    <DataSet timestep=\"{:.17g}\" part=\"0\" file=\"{}\"/>\n", t,
+                                 f);
             c << "  </Collection>\n</VTKFile>\n";
             c.close();
             fs::rename(dir / "particles.pvd.tmp", dir / "particles.pvd");
@@ -340,9 +375,11 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
             last_progress = elapsed();
             const double rate = static_cast<double>(particle_steps) / std::max(last_progress, 1e-9);
             const double eta = last_progress * (end - sim.time()) / std::max(sim.time(), 1e-300);
-            std::fprintf(stderr, "\rstep %ld  t = %.4g / %.4g s  dt = %.3g s  elapsed %s  ETA %s  %.3g particle-steps/s   ",
-                         sim.steps(), sim.time(), end, sim.last_dt(), fmt_time(last_progress).c_str(),
-                         fmt_time(eta).c_str(), rate);
+            std::fprintf(stderr,
+                         "\rstep %ld  t = %.4g / %.4g s  dt = %.3g s  elapsed %s  ETA %s  %.3g "
+                         "particle-steps/s   ",
+                         sim.steps(), sim.time(), end, sim.last_dt(),
+                         fmt_time(last_progress).c_str(), fmt_time(eta).c_str(), rate);
         }
     }
     if (opt.progress) std::fprintf(stderr, "\n");

@@ -19,8 +19,9 @@ using Keys = std::vector<std::string_view>;
 // never disagree.
 const std::vector<std::pair<std::string_view, Keys>> &schema() {
     static const std::vector<std::pair<std::string_view, Keys>> s = {
-        {"", {"talus", "dimension", "plugins", "grid", "materials", "groups", "boundaries", "gravity",
-              "nodal_velocities", "particle_velocities", "loads", "solver", "time", "output"}},
+        {"",
+         {"talus", "dimension", "plugins", "grid", "materials", "groups", "boundaries", "gravity",
+          "nodal_velocities", "particle_velocities", "loads", "solver", "time", "output"}},
         {"grid", {"origin", "size", "cell"}},
         {"materials.*", {"model", "density", "initial_state"}},
         {"groups.*", {"material", "shape", "particles_per_cell", "velocity", "initial_stress"}},
@@ -41,8 +42,9 @@ const std::vector<std::pair<std::string_view, Keys>> &schema() {
         {"particle_velocities[].velocity", {"x", "y", "z"}},
         {"loads[]", {"point", "traction", "group", "box"}},
         {"loads[].box", {"min", "max"}},
-        {"solver", {"scheme", "transfer", "shape", "cfl", "dt", "position_update",
-                    "cell_averaged_dilation", "leaving_grid"}},
+        {"solver",
+         {"scheme", "transfer", "shape", "cfl", "dt", "position_update", "cell_averaged_dilation",
+          "leaving_grid"}},
         {"solver.transfer", {"type", "alpha"}},
         {"time", {"end"}},
         {"output", {"every", "vtk", "state", "probes"}},
@@ -70,7 +72,8 @@ E choose(const yaml::Node &n, const std::vector<std::pair<std::string_view, E>> 
     }
     const std::string guess = yaml::closest_match(word, names);
     std::string list;
-    for (auto nm : names) list += (list.empty() ? "" : ", ") + std::string(nm);
+    for (auto nm : names)
+        list += (list.empty() ? "" : ", ") + std::string(nm);
     n.fail(fmt::format("unknown value '{}'{}; expected one of: {}", word,
                        guess.empty() ? "" : fmt::format(" (did you mean '{}'?)", guess), list));
 }
@@ -79,9 +82,11 @@ E choose(const yaml::Node &n, const std::vector<std::pair<std::string_view, E>> 
 Vec3 vec(const yaml::Node &n, int dim, const char *unit) {
     const std::vector<double> v = n.as_doubles();
     if (static_cast<int>(v.size()) != dim)
-        n.fail(fmt::format("expected {} numbers ({}), one per dimension, got {}", dim, unit, v.size()));
+        n.fail(fmt::format("expected {} numbers ({}), one per dimension, got {}", dim, unit,
+                           v.size()));
     Vec3 out{0, 0, 0};
-    for (int d = 0; d < dim; ++d) out[static_cast<std::size_t>(d)] = v[static_cast<std::size_t>(d)];
+    for (int d = 0; d < dim; ++d)
+        out[static_cast<std::size_t>(d)] = v[static_cast<std::size_t>(d)];
     return out;
 }
 
@@ -174,7 +179,8 @@ InitialStress read_initial_stress(const yaml::Node &n) {
         s.kind = InitialStress::Kind::uniform;
         const std::vector<double> v = u.as_doubles();
         if (v.size() != 6)
-            u.fail(fmt::format("expected 6 components [xx, yy, zz, xy, yz, xz] in Pa, got {}", v.size()));
+            u.fail(fmt::format("expected 6 components [xx, yy, zz, xy, yz, xz] in Pa, got {}",
+                               v.size()));
         std::copy(v.begin(), v.end(), s.uniform.begin());
     } else {
         const yaml::Node g = n.require("geostatic");
@@ -198,7 +204,8 @@ InitialStress read_initial_stress(const yaml::Node &n) {
 std::vector<std::string> scenario_schema() {
     std::vector<std::string> out;
     for (const auto &[path, ks] : schema())
-        for (auto k : ks) out.push_back(path.empty() ? std::string(k) : std::string(path) + "." + std::string(k));
+        for (auto k : ks)
+            out.push_back(path.empty() ? std::string(k) : std::string(path) + "." + std::string(k));
     return out;
 }
 
@@ -212,7 +219,8 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
                                  version.as_integer()));
     const yaml::Node dim = root.require("dimension");
     s.dim = static_cast<int>(dim.as_integer());
-    if (s.dim != 2 && s.dim != 3) dim.fail(fmt::format("expected 2 (plane strain) or 3, got {}", s.dim));
+    if (s.dim != 2 && s.dim != 3)
+        dim.fail(fmt::format("expected 2 (plane strain) or 3, got {}", s.dim));
 
     if (const yaml::Node plugins = root.get("plugins"); plugins.defined()) {
         plugins.expect_sequence();
@@ -242,9 +250,10 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
             grid.require("size").fail("expected every size > 0 (m)");
         // The grid is uniform: the size must be a whole number of cells.
         if (std::abs(n - std::round(n)) > 1e-9 * std::max(1.0, n))
-            cell.fail(fmt::format("size {:g} in direction {} is not a whole number of cells of {:g} "
-                                  "({:.6g} cells)",
-                                  s.size[static_cast<std::size_t>(d)], "xyz"[d], s.cell, n));
+            cell.fail(
+                fmt::format("size {:g} in direction {} is not a whole number of cells of {:g} "
+                            "({:.6g} cells)",
+                            s.size[static_cast<std::size_t>(d)], "xyz"[d], s.cell, n));
         if (std::round(n) > 1e6) cell.fail("more than 1e6 cells in one direction");
     }
 
@@ -281,18 +290,21 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
             }
         }
         if (!found) {
-            const std::string guess = yaml::closest_match(mname, std::span<const std::string>(mnames));
+            const std::string guess =
+                yaml::closest_match(mname, std::span<const std::string>(mnames));
             mat.fail(fmt::format("no material named '{}' under materials{}", mname,
                                  guess.empty() ? "" : fmt::format(" (did you mean '{}'?)", guess)));
         }
         gs.shape = read_shape(g.require("shape"), s.dim);
         if (const yaml::Node ppc = g.get("particles_per_cell"); ppc.defined()) {
             const long long n = ppc.as_integer();
-            if (n < 1 || n > 16) ppc.fail(fmt::format("expected 1 <= particles_per_cell <= 16, got {}", n));
+            if (n < 1 || n > 16)
+                ppc.fail(fmt::format("expected 1 <= particles_per_cell <= 16, got {}", n));
             gs.particles_per_cell = static_cast<int>(n);
         }
         if (const yaml::Node v = g.get("velocity"); v.defined()) gs.velocity = vec(v, s.dim, "m/s");
-        if (const yaml::Node st = g.get("initial_stress"); st.defined()) gs.stress = read_initial_stress(st);
+        if (const yaml::Node st = g.get("initial_stress"); st.defined())
+            gs.stress = read_initial_stress(st);
         s.groups.push_back(std::move(gs));
     }
     if (s.groups.empty()) groups.fail("expected at least one group");
@@ -304,17 +316,20 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
         for (int f = 0; f < 6; ++f) {
             const yaml::Node c = b.get(faces[f]);
             if (!c.raw().IsDefined()) continue;
-            if (f / 2 >= s.dim) c.fail(fmt::format("a {}D scenario has no face '{}'", s.dim, faces[f]));
+            if (f / 2 >= s.dim)
+                c.fail(fmt::format("a {}D scenario has no face '{}'", s.dim, faces[f]));
             FaceCondition &fc = s.faces[static_cast<std::size_t>(f)];
             if (c.is_map()) {
                 allow(c, "boundaries.*");
                 fc.type = FaceType::friction;
                 const yaml::Node mu = c.require("friction");
                 fc.friction = mu.as_double();
-                if (!(fc.friction >= 0.0)) mu.fail(fmt::format("expected friction >= 0, got {:g}", fc.friction));
+                if (!(fc.friction >= 0.0))
+                    mu.fail(fmt::format("expected friction >= 0, got {:g}", fc.friction));
             } else {
-                fc.type = choose<FaceType>(
-                    c, {{"free", FaceType::free}, {"fixed", FaceType::fixed}, {"slip", FaceType::slip}});
+                fc.type = choose<FaceType>(c, {{"free", FaceType::free},
+                                               {"fixed", FaceType::fixed},
+                                               {"slip", FaceType::slip}});
             }
         }
     }
@@ -340,7 +355,8 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
             allow(e, "nodal_velocities[]");
             NodalVelocity v;
             v.box = read_box(e.require("box"), "nodal_velocities[].box", s.dim);
-            v.velocity = read_components(e.require("velocity"), "nodal_velocities[].velocity", s.dim);
+            v.velocity =
+                read_components(e.require("velocity"), "nodal_velocities[].velocity", s.dim);
             s.nodal_velocities.push_back(std::move(v));
         }
     }
@@ -354,7 +370,8 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
             if (const yaml::Node b = e.get("box"); b.defined())
                 v.box = read_box(b, "particle_velocities[].box", s.dim);
             if (!v.group && !v.box) e.fail("expected a group, a box, or both (their intersection)");
-            v.velocity = read_components(e.require("velocity"), "particle_velocities[].velocity", s.dim);
+            v.velocity =
+                read_components(e.require("velocity"), "particle_velocities[].velocity", s.dim);
             s.particle_velocities.push_back(std::move(v));
         }
     }
@@ -365,16 +382,20 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
             allow(e, "loads[]");
             Load l;
             const bool point = e.has("point"), traction = e.has("traction");
-            if (point == traction) e.fail("expected exactly one of point (N per particle) or traction (Pa)");
+            if (point == traction)
+                e.fail("expected exactly one of point (N per particle) or traction (Pa)");
             l.kind = point ? Load::Kind::point : Load::Kind::traction;
             const yaml::Node val = e.require(point ? "point" : "traction");
             val.expect_sequence();
             if (static_cast<int>(val.size()) != s.dim)
-                val.fail(fmt::format("expected {} components, each a number or a [time, value] table", s.dim));
+                val.fail(fmt::format(
+                    "expected {} components, each a number or a [time, value] table", s.dim));
             for (int d = 0; d < s.dim; ++d)
-                l.value[static_cast<std::size_t>(d)] = PiecewiseLinear::read(val.at(static_cast<std::size_t>(d)));
+                l.value[static_cast<std::size_t>(d)] =
+                    PiecewiseLinear::read(val.at(static_cast<std::size_t>(d)));
             if (const yaml::Node g = e.get("group"); g.defined()) l.group = group_index(g, s);
-            if (const yaml::Node b = e.get("box"); b.defined()) l.box = read_box(b, "loads[].box", s.dim);
+            if (const yaml::Node b = e.get("box"); b.defined())
+                l.box = read_box(b, "loads[].box", s.dim);
             if (!l.group && !l.box) e.fail("expected a group, a box, or both (their intersection)");
             s.loads.push_back(std::move(l));
         }
@@ -385,21 +406,28 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
         allow(sv, "solver");
         SolverSpec &p = s.solver;
         if (const yaml::Node n = sv.get("scheme"); n.defined())
-            p.scheme = choose<Scheme>(
-                n, {{"usl", Scheme::usl}, {"usf", Scheme::usf}, {"musl", Scheme::musl}, {"usavg", Scheme::usavg}});
+            p.scheme = choose<Scheme>(n, {{"usl", Scheme::usl},
+                                          {"usf", Scheme::usf},
+                                          {"musl", Scheme::musl},
+                                          {"usavg", Scheme::usavg}});
         if (const yaml::Node n = sv.get("transfer"); n.defined()) {
             const std::vector<std::pair<std::string_view, Transfer>> kinds = {
-                {"flip", Transfer::flip}, {"pic", Transfer::flip}, {"apic", Transfer::apic}, {"tpic", Transfer::tpic}};
+                {"flip", Transfer::flip},
+                {"pic", Transfer::flip},
+                {"apic", Transfer::apic},
+                {"tpic", Transfer::tpic}};
             if (n.is_map()) {
                 allow(n, "solver.transfer");
                 const yaml::Node t = n.require("type");
                 p.transfer = choose<Transfer>(t, kinds);
                 if (t.as_string() == "pic") p.alpha = 0.0;
                 if (const yaml::Node a = n.get("alpha"); a.defined()) {
-                    if (p.transfer != Transfer::flip) a.fail("alpha applies to the flip transfer only");
+                    if (p.transfer != Transfer::flip)
+                        a.fail("alpha applies to the flip transfer only");
                     p.alpha = a.as_double();
                     if (!(p.alpha >= 0.0 && p.alpha <= 1.0))
-                        a.fail(fmt::format("expected 0 <= alpha <= 1 (0: PIC, 1: FLIP), got {:g}", p.alpha));
+                        a.fail(fmt::format("expected 0 <= alpha <= 1 (0: PIC, 1: FLIP), got {:g}",
+                                           p.alpha));
                 }
             } else {
                 p.transfer = choose<Transfer>(n, kinds);
@@ -413,7 +441,8 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
                                             {"bspline3", ShapeKind::bspline3}});
         if (const yaml::Node n = sv.get("cfl"); n.defined()) {
             p.cfl = n.as_double();
-            if (!(p.cfl > 0.0 && p.cfl <= 1.0)) n.fail(fmt::format("expected 0 < cfl <= 1, got {:g}", p.cfl));
+            if (!(p.cfl > 0.0 && p.cfl <= 1.0))
+                n.fail(fmt::format("expected 0 < cfl <= 1, got {:g}", p.cfl));
         }
         if (const yaml::Node n = sv.get("dt"); n.defined()) p.dt = positive(n, "dt (s)");
         if (const yaml::Node n = sv.get("position_update"); n.defined())
@@ -422,7 +451,8 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
         if (const yaml::Node n = sv.get("cell_averaged_dilation"); n.defined())
             p.cell_averaged_dilation = n.as_bool();
         if (const yaml::Node n = sv.get("leaving_grid"); n.defined())
-            p.leave = choose<LeavePolicy>(n, {{"stop", LeavePolicy::stop}, {"remove", LeavePolicy::remove}});
+            p.leave = choose<LeavePolicy>(
+                n, {{"stop", LeavePolicy::stop}, {"remove", LeavePolicy::remove}});
     }
 
     const yaml::Node time = root.require("time");
@@ -431,7 +461,8 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
 
     if (const yaml::Node out = root.get("output"); out.defined()) {
         allow(out, "output");
-        if (const yaml::Node n = out.get("every"); n.defined()) s.output.every = positive(n, "every (s)");
+        if (const yaml::Node n = out.get("every"); n.defined())
+            s.output.every = positive(n, "every (s)");
         if (const yaml::Node n = out.get("vtk"); n.defined()) s.output.vtk = n.as_bool();
         if (const yaml::Node st = out.get("state"); st.defined()) {
             st.expect_sequence();
@@ -441,11 +472,14 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
                 const std::string name = e.as_string();
                 std::vector<std::string> known;
                 for (const auto &m : s.materials)
-                    for (const auto &v : m.spec.model->state()) known.push_back(v.name);
+                    for (const auto &v : m.spec.model->state())
+                        known.push_back(v.name);
                 if (std::find(known.begin(), known.end(), name) == known.end()) {
-                    const std::string guess = yaml::closest_match(name, std::span<const std::string>(known));
-                    e.fail(fmt::format("no material of this scenario has a state variable '{}'{}", name,
-                                       guess.empty() ? "" : fmt::format(" (did you mean '{}'?)", guess)));
+                    const std::string guess =
+                        yaml::closest_match(name, std::span<const std::string>(known));
+                    e.fail(fmt::format(
+                        "no material of this scenario has a state variable '{}'{}", name,
+                        guess.empty() ? "" : fmt::format(" (did you mean '{}'?)", guess)));
                 }
                 s.output.state_fields.push_back(name);
             }
@@ -458,7 +492,9 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
                 Probe p;
                 p.name = e.require("name").as_string();
                 const bool part = e.has("particle"), com = e.has("centre_of_mass");
-                if (part == com) e.fail("expected exactly one of particle: [x, y(, z)] or centre_of_mass: group");
+                if (part == com)
+                    e.fail(
+                        "expected exactly one of particle: [x, y(, z)] or centre_of_mass: group");
                 if (part) {
                     p.kind = Probe::Kind::particle;
                     p.point = vec(e.require("particle"), s.dim, "m");
@@ -467,7 +503,8 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
                     p.group = group_index(e.require("centre_of_mass"), s);
                 }
                 for (const Probe &q : s.output.probes)
-                    if (q.name == p.name) e.require("name").fail(fmt::format("probe name '{}' used twice", p.name));
+                    if (q.name == p.name)
+                        e.require("name").fail(fmt::format("probe name '{}' used twice", p.name));
                 s.output.probes.push_back(std::move(p));
             }
         }
@@ -482,13 +519,17 @@ bool GroupShape::contains(const double *x, int dim) const {
     case Kind::box: return box.contains(x, dim);
     case Kind::sphere: {
         double r2 = 0.0;
-        for (int d = 0; d < dim; ++d) r2 += (x[d] - center[static_cast<std::size_t>(d)]) * (x[d] - center[static_cast<std::size_t>(d)]);
+        for (int d = 0; d < dim; ++d)
+            r2 += (x[d] - center[static_cast<std::size_t>(d)]) *
+                  (x[d] - center[static_cast<std::size_t>(d)]);
         return r2 <= radius * radius;
     }
     case Kind::cylinder: {
         double r2 = 0.0;
         for (int d = 0; d < 3; ++d)
-            if (d != axis) r2 += (x[d] - center[static_cast<std::size_t>(d)]) * (x[d] - center[static_cast<std::size_t>(d)]);
+            if (d != axis)
+                r2 += (x[d] - center[static_cast<std::size_t>(d)]) *
+                      (x[d] - center[static_cast<std::size_t>(d)]);
         return r2 <= radius * radius && x[axis] >= zmin && x[axis] <= zmax;
     }
     case Kind::polygon: {

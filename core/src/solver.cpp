@@ -27,7 +27,8 @@ namespace talus {
 
 namespace {
 // Every per-particle array with its number of values per particle.
-template <class PS, class F> void for_each_array(PS &s, F &&f) {
+template <class PS, class F>
+void for_each_array(PS &s, F &&f) {
     for (int d = 0; d < 3; ++d) {
         f(s.x[static_cast<std::size_t>(d)], 1);
         f(s.x0[static_cast<std::size_t>(d)], 1);
@@ -81,8 +82,8 @@ struct Simulation::Impl {
     int ghost = kGhostLayers;
     double h = 1.0, inv_h = 1.0;
     std::array<double, 3> origin{0, 0, 0};
-    std::array<int, 3> cells{1, 1, 1};  // cells of the domain per direction
-    std::array<int, 3> nodes{1, 1, 1};  // nodes including ghost layers
+    std::array<int, 3> cells{1, 1, 1}; // cells of the domain per direction
+    std::array<int, 3> nodes{1, 1, 1}; // nodes including ghost layers
     std::size_t n_nodes = 0, n_cells = 0;
 
     // Grid fields as node records of 8 doubles (one cache line), so that a
@@ -101,8 +102,8 @@ struct Simulation::Impl {
     // below and two above its own, so slabs of one colour (every other slab)
     // never write the same node when slab_width >= 4.
     int slab_axis = 0, slab_width = 4, n_slabs = 1;
-    std::vector<std::vector<std::uint32_t>> order;     // per set: particle indices by slab
-    std::vector<std::vector<std::size_t>> slab_begin;  // per set: n_slabs + 1 offsets
+    std::vector<std::vector<std::uint32_t>> order;    // per set: particle indices by slab
+    std::vector<std::vector<std::size_t>> slab_begin; // per set: n_slabs + 1 offsets
 
     std::vector<double> cell_div, cell_vol; // cell-averaged dilation sums
     std::vector<std::size_t> slab_end_tmp;  // bin_particles scratch
@@ -120,7 +121,9 @@ struct Simulation::Impl {
     struct PhaseTimer {
         double &acc;
         std::chrono::steady_clock::time_point t0 = std::chrono::steady_clock::now();
-        ~PhaseTimer() { acc += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); }
+        ~PhaseTimer() {
+            acc += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        }
     };
     PhaseTimer time_phase(int k) { return PhaseTimer{phase_seconds[static_cast<std::size_t>(k)]}; }
 
@@ -135,13 +138,16 @@ struct Simulation::Impl {
     std::size_t node_index(int i, int j, int k) const {
         return static_cast<std::size_t>(i) +
                static_cast<std::size_t>(nodes[0]) *
-                   (static_cast<std::size_t>(j) + static_cast<std::size_t>(nodes[1]) * static_cast<std::size_t>(k));
+                   (static_cast<std::size_t>(j) +
+                    static_cast<std::size_t>(nodes[1]) * static_cast<std::size_t>(k));
     }
     // Cell (in domain cells) containing a position; clamped into the domain.
     std::size_t cell_index(const ParticleSet &s, std::size_t p) const {
         std::size_t idx = 0, stride = 1;
         for (int d = 0; d < dim; ++d) {
-            int c = static_cast<int>(fast_floor((s.x[static_cast<std::size_t>(d)][p] - origin[static_cast<std::size_t>(d)]) * inv_h));
+            int c = static_cast<int>(fast_floor(
+                (s.x[static_cast<std::size_t>(d)][p] - origin[static_cast<std::size_t>(d)]) *
+                inv_h));
             c = std::clamp(c, 0, cells[static_cast<std::size_t>(d)] - 1);
             idx += static_cast<std::size_t>(c) * stride;
             stride *= static_cast<std::size_t>(cells[static_cast<std::size_t>(d)]);
@@ -179,12 +185,15 @@ struct Simulation::Impl {
     int inverted_set = -1;
     std::size_t inverted_particle = 0;
     std::string inversion_message(const ParticleSet &s, std::size_t p, double t) const {
-        return fmt::format("step {} (t = {:.6g} s): particle {} of group '{}' inverted (J = {:.3g}): the "
-                           "deformation in one step is too large; reduce cfl or dt",
-                           sim.step_ + 1, t, s.id[p], sim.sc_.groups[static_cast<std::size_t>(s.group[p])].name,
-                           s.J[p]);
+        return fmt::format(
+            "step {} (t = {:.6g} s): particle {} of group '{}' inverted (J = {:.3g}): the "
+            "deformation in one step is too large; reduce cfl or dt",
+            sim.step_ + 1, t, s.id[p], sim.sc_.groups[static_cast<std::size_t>(s.group[p])].name,
+            s.J[p]);
     }
-    double load_value(const Load &l, int d, double t) const { return l.value[static_cast<std::size_t>(d)](t); }
+    double load_value(const Load &l, int d, double t) const {
+        return l.value[static_cast<std::size_t>(d)](t);
+    }
 };
 
 namespace {
@@ -218,11 +227,15 @@ inline void hughes_winget(const double *L, double dt, double *sig) {
     double Q[3][3] = {{1.0 + c * (a1 * a1 - aa), c * (-a3 + a1 * a2), c * (a2 + a1 * a3)},
                       {c * (a3 + a2 * a1), 1.0 + c * (a2 * a2 - aa), c * (-a1 + a2 * a3)},
                       {c * (-a2 + a3 * a1), c * (a1 + a3 * a2), 1.0 + c * (a3 * a3 - aa)}};
-    const double S[3][3] = {{sig[0], sig[3], sig[5]}, {sig[3], sig[1], sig[4]}, {sig[5], sig[4], sig[2]}};
+    const double S[3][3] = {
+        {sig[0], sig[3], sig[5]}, {sig[3], sig[1], sig[4]}, {sig[5], sig[4], sig[2]}};
     double QS[3][3];
     for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j) QS[i][j] = Q[i][0] * S[0][j] + Q[i][1] * S[1][j] + Q[i][2] * S[2][j];
-    auto R = [&](int i, int j) { return QS[i][0] * Q[j][0] + QS[i][1] * Q[j][1] + QS[i][2] * Q[j][2]; };
+        for (int j = 0; j < 3; ++j)
+            QS[i][j] = Q[i][0] * S[0][j] + Q[i][1] * S[1][j] + Q[i][2] * S[2][j];
+    auto R = [&](int i, int j) {
+        return QS[i][0] * Q[j][0] + QS[i][1] * Q[j][1] + QS[i][2] * Q[j][2];
+    };
     sig[0] = R(0, 0);
     sig[1] = R(1, 1);
     sig[2] = R(2, 2);
@@ -232,7 +245,8 @@ inline void hughes_winget(const double *L, double dt, double *sig) {
 }
 
 inline double stress_work(const double *sig, const double *de) {
-    return sig[0] * de[0] + sig[1] * de[1] + sig[2] * de[2] + sig[3] * de[3] + sig[4] * de[4] + sig[5] * de[5];
+    return sig[0] * de[0] + sig[1] * de[1] + sig[2] * de[2] + sig[3] * de[3] + sig[4] * de[4] +
+           sig[5] * de[5];
 }
 
 // Per-point kinematics: F (eq. 39), J, density (eq. 41), the strain
@@ -240,14 +254,16 @@ inline double stress_work(const double *sig, const double *de) {
 // and the first half of the stress work. Returns false if the point
 // inverted (J <= 0). L is a row-major 3x3 (Stride 3) or D x D (Stride D).
 template <int Stride>
-inline bool kinematics_point(ParticleSet &s, std::size_t p, const double *Lg, double dt, int dim, bool defer_work) {
+inline bool kinematics_point(ParticleSet &s, std::size_t p, const double *Lg, double dt, int dim,
+                             bool defer_work) {
     double L[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
     for (int r = 0; r < (Stride == 3 ? 3 : Stride); ++r)
-        for (int c = 0; c < (Stride == 3 ? 3 : Stride); ++c) L[3 * r + c] = Lg[Stride * r + c];
+        for (int c = 0; c < (Stride == 3 ? 3 : Stride); ++c)
+            L[3 * r + c] = Lg[Stride * r + c];
     const double *F0 = &s.F[9 * p];
     double *F1 = &s.F_new[9 * p];
     double J;
-            if (dim == 2) {
+    if (dim == 2) {
         // Plane strain: only the in-plane block of F changes.
         const double a00 = 1.0 + dt * L[0], a01 = dt * L[1], a10 = dt * L[3], a11 = 1.0 + dt * L[4];
         F1[0] = a00 * F0[0] + a01 * F0[3];
@@ -260,7 +276,8 @@ inline bool kinematics_point(ParticleSet &s, std::size_t p, const double *Lg, do
     } else {
         for (int i = 0; i < 3; ++i)
             for (int j = 0; j < 3; ++j)
-                F1[3 * i + j] = F0[3 * i + j] + dt * (L[3 * i] * F0[j] + L[3 * i + 1] * F0[3 + j] + L[3 * i + 2] * F0[6 + j]);
+                F1[3 * i + j] = F0[3 * i + j] + dt * (L[3 * i] * F0[j] + L[3 * i + 1] * F0[3 + j] +
+                                                      L[3 * i + 2] * F0[6 + j]);
         J = F1[0] * (F1[4] * F1[8] - F1[5] * F1[7]) - F1[1] * (F1[3] * F1[8] - F1[5] * F1[6]) +
             F1[2] * (F1[3] * F1[7] - F1[4] * F1[6]);
     }
@@ -283,7 +300,8 @@ inline bool kinematics_point(ParticleSet &s, std::size_t p, const double *Lg, do
 // ------------------------------------------------------------- stencils --
 
 // Weights and gradients of one particle's stencil.
-template <int D, class S, bool Offsets = true> struct Stencil {
+template <int D, class S, bool Offsets = true>
+struct Stencil {
     static constexpr int W = S::width;
     static constexpr int NN = D == 2 ? W * W : W * W * W;
     std::size_t idx[NN];
@@ -335,8 +353,10 @@ template <int D, class S, bool Offsets = true> struct Stencil {
 // Sum of the applied forces on particle p at time t (point loads and
 // tractions; a traction acts on the particle's face area V0^((d-1)/d)).
 template <int D>
-void particle_load(const Simulation::Impl &g, const ParticleSet &s, std::size_t p, double t, double *f) {
-    for (int d = 0; d < D; ++d) f[d] = 0.0;
+void particle_load(const Simulation::Impl &g, const ParticleSet &s, std::size_t p, double t,
+                   double *f) {
+    for (int d = 0; d < D; ++d)
+        f[d] = 0.0;
     std::uint32_t mask = s.load_mask[p];
     const auto &loads = g.sim.scenario().loads;
     while (mask) {
@@ -345,7 +365,8 @@ void particle_load(const Simulation::Impl &g, const ParticleSet &s, std::size_t 
         const Load &l = loads[static_cast<std::size_t>(k)];
         const double scale =
             l.kind == Load::Kind::traction ? std::pow(s.vol0[p], (D - 1.0) / D) : 1.0;
-        for (int d = 0; d < D; ++d) f[d] += scale * g.load_value(l, d, t);
+        for (int d = 0; d < D; ++d)
+            f[d] += scale * g.load_value(l, d, t);
     }
 }
 
@@ -372,10 +393,12 @@ void p2g_pass(Simulation::Impl &g, double t, const double *grav) {
                     st.eval(g, s, p);
                     const double m = s.mass[p];
                     double vp[D], Cp[D][D] = {}, Vsig[D][D] = {}, fext[D] = {};
-                    for (int d = 0; d < D; ++d) vp[d] = s.v[static_cast<std::size_t>(d)][p];
+                    for (int d = 0; d < D; ++d)
+                        vp[d] = s.v[static_cast<std::size_t>(d)][p];
                     if constexpr (Affine)
                         for (int r = 0; r < D; ++r)
-                            for (int c = 0; c < D; ++c) Cp[r][c] = s.C[9 * p + static_cast<std::size_t>(3 * r + c)];
+                            for (int c = 0; c < D; ++c)
+                                Cp[r][c] = s.C[9 * p + static_cast<std::size_t>(3 * r + c)];
                     if constexpr (Forces) {
                         const double V = s.J[p] * s.vol0[p];
                         const double *sg = &s.stress[6 * p];
@@ -389,7 +412,8 @@ void p2g_pass(Simulation::Impl &g, double t, const double *grav) {
                             Vsig[0][2] = Vsig[2][0] = V * sg[5];
                         }
                         if (s.load_mask[p]) particle_load<D>(g, s, p, t, fext);
-                        for (int d = 0; d < D; ++d) fext[d] += m * grav[d];
+                        for (int d = 0; d < D; ++d)
+                            fext[d] += m * grav[d];
                     }
                     for (int q = 0; q < Stencil<D, S, Affine>::NN; ++q) {
                         double *rec = acc + Impl::kRec * st.idx[q];
@@ -399,12 +423,14 @@ void p2g_pass(Simulation::Impl &g, double t, const double *grav) {
                             if constexpr (Momentum) {
                                 double vq = vp[d];
                                 if constexpr (Affine)
-                                    for (int c = 0; c < D; ++c) vq += Cp[d][c] * st.off[q][c];
+                                    for (int c = 0; c < D; ++c)
+                                        vq += Cp[d][c] * st.off[q][c];
                                 rec[Impl::kP + static_cast<std::size_t>(d)] += mw * vq;
                             }
                             if constexpr (Forces) {
                                 double fi = st.w[q] * fext[d];
-                                for (int c = 0; c < D; ++c) fi -= Vsig[d][c] * st.grad[q][c];
+                                for (int c = 0; c < D; ++c)
+                                    fi -= Vsig[d][c] * st.grad[q][c];
                                 rec[Impl::kF + static_cast<std::size_t>(d)] += fi;
                             }
                         }
@@ -415,22 +441,28 @@ void p2g_pass(Simulation::Impl &g, double t, const double *grav) {
     }
 }
 
-template <int D, class S> void p2g_kernel(Simulation::Impl &g, bool mass_momentum, bool forces, bool remap, double t) {
+template <int D, class S>
+void p2g_kernel(Simulation::Impl &g, bool mass_momentum, bool forces, bool remap, double t) {
     const auto &sc = g.sim.scenario();
     const double ramp = sc.gravity_ramp > 0.0 ? std::min(1.0, t / sc.gravity_ramp) : 1.0;
     double grav[3];
-    for (int d = 0; d < 3; ++d) grav[d] = sc.gravity[static_cast<std::size_t>(d)] * ramp;
+    for (int d = 0; d < 3; ++d)
+        grav[d] = sc.gravity[static_cast<std::size_t>(d)] * ramp;
     const bool affine = sc.solver.transfer != Transfer::flip;
     // MUSL remap: the updated particle momentum alone, no affine term.
     if (remap) return p2g_pass<D, S, false, true, false, false>(g, t, grav);
     // USF / USAVG second pass: forces alone, from the updated stress.
     if (!mass_momentum) return p2g_pass<D, S, false, false, false, true>(g, t, grav);
     if (affine) {
-        if (forces) p2g_pass<D, S, true, true, true, true>(g, t, grav);
-        else p2g_pass<D, S, true, true, true, false>(g, t, grav);
+        if (forces)
+            p2g_pass<D, S, true, true, true, true>(g, t, grav);
+        else
+            p2g_pass<D, S, true, true, true, false>(g, t, grav);
     } else {
-        if (forces) p2g_pass<D, S, true, true, false, true>(g, t, grav);
-        else p2g_pass<D, S, true, true, false, false>(g, t, grav);
+        if (forces)
+            p2g_pass<D, S, true, true, false, true>(g, t, grav);
+        else
+            p2g_pass<D, S, true, true, false, false>(g, t, grav);
     }
 }
 
@@ -464,9 +496,11 @@ void g2p_motion_pass(Simulation::Impl &g, double dt, double t, double kin_dt) {
                     vpic[d] += st.w[q] * a1;
                     vold[d] += st.w[q] * rec[Impl::kV0 + static_cast<std::size_t>(d)];
                     if constexpr (Gradient)
-                        for (int c = 0; c < D; ++c) L[d][c] += a1 * st.grad[q][c];
+                        for (int c = 0; c < D; ++c)
+                            L[d][c] += a1 * st.grad[q][c];
                     if constexpr (Apic)
-                        for (int c = 0; c < D; ++c) B[d][c] += st.w[q] * a1 * st.off[q][c];
+                        for (int c = 0; c < D; ++c)
+                            B[d][c] += st.w[q] * a1 * st.off[q][c];
                 }
             }
             for (int d = 0; d < D; ++d) {
@@ -484,18 +518,21 @@ void g2p_motion_pass(Simulation::Impl &g, double dt, double t, double kin_dt) {
                 }
             } else if constexpr (Gradient) {
                 for (int r = 0; r < D; ++r)
-                    for (int c = 0; c < D; ++c) s.L[9 * p + static_cast<std::size_t>(3 * r + c)] = L[r][c];
+                    for (int c = 0; c < D; ++c)
+                        s.L[9 * p + static_cast<std::size_t>(3 * r + c)] = L[r][c];
             }
             if constexpr (Apic) {
                 // C_p = B_p D_p^-1 (Jiang et al. 2015); for tent-based kernels
                 // D_p is not constant and grad w plays the role of w D^-1 dx.
                 for (int r = 0; r < D; ++r)
                     for (int c = 0; c < D; ++c)
-                        s.C[9 * p + static_cast<std::size_t>(3 * r + c)] = bspline ? B[r][c] * g.apic_dinv : L[r][c];
+                        s.C[9 * p + static_cast<std::size_t>(3 * r + c)] =
+                            bspline ? B[r][c] * g.apic_dinv : L[r][c];
             } else if (tr == Transfer::tpic) {
                 // Taylor transfer: the velocity gradient itself (eq. 29).
                 for (int r = 0; r < D; ++r)
-                    for (int c = 0; c < D; ++c) s.C[9 * p + static_cast<std::size_t>(3 * r + c)] = L[r][c];
+                    for (int c = 0; c < D; ++c)
+                        s.C[9 * p + static_cast<std::size_t>(3 * r + c)] = L[r][c];
             }
             // Particle velocity fixities override the grid's answer.
             if (std::uint32_t mask = s.fix_mask[p]) {
@@ -507,7 +544,8 @@ void g2p_motion_pass(Simulation::Impl &g, double dt, double t, double kin_dt) {
                     for (int d = 0; d < D; ++d)
                         if (const auto &fn = f.c[static_cast<std::size_t>(d)]) {
                             s.v[static_cast<std::size_t>(d)][p] = (*fn)(t + dt);
-                            s.dx[static_cast<std::size_t>(d)][p] = 0.5 * dt * ((*fn)(t) + (*fn)(t + dt));
+                            s.dx[static_cast<std::size_t>(d)][p] =
+                                0.5 * dt * ((*fn)(t) + (*fn)(t + dt));
                         }
                 }
             }
@@ -533,7 +571,8 @@ void g2p_motion_kernel(Simulation::Impl &g, double dt, double t, bool gradient, 
 
 // Velocity gradient (eq. 38) from one velocity field of the node records,
 // for the schemes that take it from another field than v~ (USF, MUSL, USAVG).
-template <int D, class S> void g2p_gradient_kernel(Simulation::Impl &g, const double *field, std::size_t offset) {
+template <int D, class S>
+void g2p_gradient_kernel(Simulation::Impl &g, const double *field, std::size_t offset) {
     using Impl = Simulation::Impl;
     for (auto &s : g.sim.sets()) {
         const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(s.n);
@@ -546,21 +585,25 @@ template <int D, class S> void g2p_gradient_kernel(Simulation::Impl &g, const do
             for (int q = 0; q < Stencil<D, S, false>::NN; ++q) {
                 const double *rec = field + Impl::kRec * st.idx[q] + offset;
                 for (int d = 0; d < D; ++d)
-                    for (int c = 0; c < D; ++c) L[d][c] += rec[d] * st.grad[q][c];
+                    for (int c = 0; c < D; ++c)
+                        L[d][c] += rec[d] * st.grad[q][c];
             }
             for (int r = 0; r < D; ++r)
-                for (int c = 0; c < D; ++c) s.L[9 * p + static_cast<std::size_t>(3 * r + c)] = L[r][c];
+                for (int c = 0; c < D; ++c)
+                    s.L[9 * p + static_cast<std::size_t>(3 * r + c)] = L[r][c];
         }
     }
 }
 
-template <int D, class S> void bind(Simulation::Impl &g) {
+template <int D, class S>
+void bind(Simulation::Impl &g) {
     g.p2g = &p2g_kernel<D, S>;
     g.g2p_motion = &g2p_motion_kernel<D, S>;
     g.g2p_gradient = &g2p_gradient_kernel<D, S>;
 }
 
-template <int D> void bind_shape(Simulation::Impl &g, ShapeKind k) {
+template <int D>
+void bind_shape(Simulation::Impl &g, ShapeKind k) {
     switch (k) {
     case ShapeKind::linear: bind<D, LinearShape>(g); break;
     case ShapeKind::gimp: bind<D, GimpShape>(g); break;
@@ -598,12 +641,17 @@ void Simulation::Impl::setup_grid() {
     // Nodes on a face or beyond it (ghost layers) carry that face's condition.
     for (std::size_t i = 0; i < n_nodes; ++i) {
         const int ijk[3] = {static_cast<int>(i % static_cast<std::size_t>(nodes[0])),
-                            static_cast<int>((i / static_cast<std::size_t>(nodes[0])) % static_cast<std::size_t>(nodes[1])),
-                            static_cast<int>(i / (static_cast<std::size_t>(nodes[0]) * static_cast<std::size_t>(nodes[1])))};
+                            static_cast<int>((i / static_cast<std::size_t>(nodes[0])) %
+                                             static_cast<std::size_t>(nodes[1])),
+                            static_cast<int>(i / (static_cast<std::size_t>(nodes[0]) *
+                                                  static_cast<std::size_t>(nodes[1])))};
         for (int d = 0; d < dim; ++d) {
-            if (ijk[d] <= ghost) face_nodes[static_cast<std::size_t>(2 * d)].push_back(static_cast<std::uint32_t>(i));
+            if (ijk[d] <= ghost)
+                face_nodes[static_cast<std::size_t>(2 * d)].push_back(
+                    static_cast<std::uint32_t>(i));
             if (ijk[d] >= ghost + cells[static_cast<std::size_t>(d)])
-                face_nodes[static_cast<std::size_t>(2 * d + 1)].push_back(static_cast<std::uint32_t>(i));
+                face_nodes[static_cast<std::size_t>(2 * d + 1)].push_back(
+                    static_cast<std::uint32_t>(i));
         }
         (void)ijk;
     }
@@ -612,9 +660,12 @@ void Simulation::Impl::setup_grid() {
         for (std::size_t i = 0; i < n_nodes; ++i) {
             double x[3];
             const int ijk[3] = {static_cast<int>(i % static_cast<std::size_t>(nodes[0])),
-                                static_cast<int>((i / static_cast<std::size_t>(nodes[0])) % static_cast<std::size_t>(nodes[1])),
-                                static_cast<int>(i / (static_cast<std::size_t>(nodes[0]) * static_cast<std::size_t>(nodes[1])))};
-            for (int d = 0; d < dim; ++d) x[d] = origin[static_cast<std::size_t>(d)] + (ijk[d] - ghost) * h;
+                                static_cast<int>((i / static_cast<std::size_t>(nodes[0])) %
+                                                 static_cast<std::size_t>(nodes[1])),
+                                static_cast<int>(i / (static_cast<std::size_t>(nodes[0]) *
+                                                      static_cast<std::size_t>(nodes[1])))};
+            for (int d = 0; d < dim; ++d)
+                x[d] = origin[static_cast<std::size_t>(d)] + (ijk[d] - ghost) * h;
             if (sc.nodal_velocities[k].box.contains(x, dim))
                 prescribed_nodes[k].push_back(static_cast<std::uint32_t>(i));
         }
@@ -624,7 +675,8 @@ void Simulation::Impl::setup_grid() {
     // memory once sorted by cell.
     slab_axis = dim - 1;
     for (int d = dim - 2; d >= 0; --d)
-        if (cells[static_cast<std::size_t>(d)] > cells[static_cast<std::size_t>(slab_axis)]) slab_axis = d;
+        if (cells[static_cast<std::size_t>(d)] > cells[static_cast<std::size_t>(slab_axis)])
+            slab_axis = d;
     n_slabs = std::max(1, cells[static_cast<std::size_t>(slab_axis)] / slab_width);
 
     if (sc.solver.cell_averaged_dilation) {
@@ -633,11 +685,15 @@ void Simulation::Impl::setup_grid() {
     }
     // Sum over the stencil of w (x_i - x_p)(x_i - x_p)^T is h^2/4 I for the
     // quadratic and h^2/3 I for the cubic B-spline (Jiang et al. 2015).
-    if (sc.solver.shape == ShapeKind::bspline2) apic_dinv = 4.0 / (h * h);
-    else if (sc.solver.shape == ShapeKind::bspline3) apic_dinv = 3.0 / (h * h);
+    if (sc.solver.shape == ShapeKind::bspline2)
+        apic_dinv = 4.0 / (h * h);
+    else if (sc.solver.shape == ShapeKind::bspline3)
+        apic_dinv = 3.0 / (h * h);
 
-    if (dim == 2) bind_shape<2>(*this, sc.solver.shape);
-    else bind_shape<3>(*this, sc.solver.shape);
+    if (dim == 2)
+        bind_shape<2>(*this, sc.solver.shape);
+    else
+        bind_shape<3>(*this, sc.solver.shape);
 #ifdef _OPENMP
     scratch.resize(static_cast<std::size_t>(omp_get_max_threads()));
 #else
@@ -660,9 +716,11 @@ void Simulation::Impl::bin_particles() {
         auto &slab = slab_index[si];
         if (slab.size() != s.n) {
             slab.resize(s.n);
-            for (std::size_t p = 0; p < s.n; ++p) slab[p] = slab_of(s, p);
+            for (std::size_t p = 0; p < s.n; ++p)
+                slab[p] = slab_of(s, p);
         }
-        for (std::size_t p = 0; p < s.n; ++p) ++begin[static_cast<std::size_t>(slab[p]) + 1];
+        for (std::size_t p = 0; p < s.n; ++p)
+            ++begin[static_cast<std::size_t>(slab[p]) + 1];
         std::partial_sum(begin.begin(), begin.end(), begin.begin());
         order[si].resize(s.n);
         // Fill by decrementing the end offsets, walking backwards so that
@@ -679,11 +737,14 @@ void Simulation::Impl::bin_particles() {
 void Simulation::Impl::sort_particles() {
     for (ParticleSet &s : sim.sets_) {
         std::vector<std::size_t> key(s.n), perm(s.n);
-        for (std::size_t p = 0; p < s.n; ++p) key[p] = cell_index(s, p);
+        for (std::size_t p = 0; p < s.n; ++p)
+            key[p] = cell_index(s, p);
         std::iota(perm.begin(), perm.end(), 0);
-        std::stable_sort(perm.begin(), perm.end(), [&](std::size_t a, std::size_t b) { return key[a] < key[b]; });
+        std::stable_sort(perm.begin(), perm.end(),
+                         [&](std::size_t a, std::size_t b) { return key[a] < key[b]; });
         bool sorted = true;
-        for (std::size_t p = 0; p < s.n && sorted; ++p) sorted = perm[p] == p;
+        for (std::size_t p = 0; p < s.n && sorted; ++p)
+            sorted = perm[p] == p;
         if (sorted) continue;
         ParticleSet t;
         t.state_size = s.state_size;
@@ -697,18 +758,21 @@ void Simulation::Impl::sort_particles() {
         std::vector<std::pair<std::vector<double> *, std::size_t>> dst, src;
         for_each_array(t, [&](auto &a, std::size_t st) { dst.emplace_back(&a, st); });
         for_each_array(s, [&](auto &a, std::size_t st) { src.emplace_back(&a, st); });
-        for (std::size_t k = 0; k < dst.size(); ++k) gather(*dst[k].first, *src[k].first, dst[k].second);
+        for (std::size_t k = 0; k < dst.size(); ++k)
+            gather(*dst[k].first, *src[k].first, dst[k].second);
         gather(t.id, s.id, 1);
         gather(t.group, s.group, 1);
         gather(t.load_mask, s.load_mask, 1);
         gather(t.fix_mask, s.fix_mask, 1);
-        for (std::size_t k = 0; k < dst.size(); ++k) src[k].first->swap(*dst[k].first);
+        for (std::size_t k = 0; k < dst.size(); ++k)
+            src[k].first->swap(*dst[k].first);
         s.id.swap(t.id);
         s.group.swap(t.group);
         s.load_mask.swap(t.load_mask);
         s.fix_mask.swap(t.fix_mask);
     }
-    for (auto &sl : slab_index) sl.clear(); // recomputed by bin_particles
+    for (auto &sl : slab_index)
+        sl.clear(); // recomputed by bin_particles
 }
 
 void Simulation::Impl::reset_grid() { std::fill(acc.begin(), acc.end(), 0.0); }
@@ -727,7 +791,8 @@ void Simulation::Impl::apply_bc(double *field, std::size_t offset, double t_eval
         for (std::uint32_t i : face_nodes[static_cast<std::size_t>(f)]) {
             double *v = V(i);
             if (fc.type == FaceType::fixed) {
-                for (int d = 0; d < dim; ++d) v[d] = 0.0;
+                for (int d = 0; d < dim; ++d)
+                    v[d] = 0.0;
             } else if (fc.type == FaceType::slip) {
                 v[axis] = 0.0;
             } else {
@@ -748,7 +813,8 @@ void Simulation::Impl::apply_bc(double *field, std::size_t offset, double t_eval
         for (int d = 0; d < dim; ++d)
             if (const auto &fn = sc.nodal_velocities[k].velocity.c[static_cast<std::size_t>(d)]) {
                 const double v = (*fn)(t_eval);
-                for (std::uint32_t i : prescribed_nodes[k]) V(i)[d] = v;
+                for (std::uint32_t i : prescribed_nodes[k])
+                    V(i)[d] = v;
             }
 }
 
@@ -764,7 +830,9 @@ void Simulation::Impl::grid_velocities(double dt, double t, bool update) {
             const std::size_t i = static_cast<std::size_t>(ii);
             const double m = a[kRec * i + kM];
             const double inv = m > 0.0 ? 1.0 / m : 0.0;
-            for (int d = 0; d < D; ++d) v[kRec * i + kV0 + static_cast<std::size_t>(d)] = a[kRec * i + kP + static_cast<std::size_t>(d)] * inv;
+            for (int d = 0; d < D; ++d)
+                v[kRec * i + kV0 + static_cast<std::size_t>(d)] =
+                    a[kRec * i + kP + static_cast<std::size_t>(d)] * inv;
         }
         apply_bc(v, kV0, t);
         return;
@@ -784,9 +852,7 @@ void Simulation::Impl::grid_velocities(double dt, double t, bool update) {
 
 // ---------------------------------------------------- material update --
 
-namespace {
-
-} // namespace
+namespace {} // namespace
 
 // One plugin call for points [begin, begin + count) of set s, in place;
 // a cut-step request is honoured by splitting the increment (strain, and F
@@ -818,8 +884,10 @@ void Simulation::Impl::call_material(ParticleSet &s, std::size_t begin, std::siz
     const auto &mat = sc.materials[s.material];
     if (r.status == TALUS_STATUS_CUT_STEP && depth < 8) {
         // Restore the inputs and sub-step this batch.
-        std::copy(scr.s0.begin(), scr.s0.end(), s.stress.begin() + static_cast<std::ptrdiff_t>(6 * begin));
-        std::copy(scr.q0.begin(), scr.q0.end(), s.state.begin() + static_cast<std::ptrdiff_t>(ns * begin));
+        std::copy(scr.s0.begin(), scr.s0.end(),
+                  s.stress.begin() + static_cast<std::ptrdiff_t>(6 * begin));
+        std::copy(scr.q0.begin(), scr.q0.end(),
+                  s.state.begin() + static_cast<std::ptrdiff_t>(ns * begin));
         const int k = std::max(2, static_cast<int>(std::ceil(1.0 / r.cut_factor)));
         std::vector<double> de(s.de.begin() + static_cast<std::ptrdiff_t>(6 * begin),
                                s.de.begin() + static_cast<std::ptrdiff_t>(6 * (begin + count)));
@@ -832,9 +900,13 @@ void Simulation::Impl::call_material(ParticleSet &s, std::size_t begin, std::siz
         for (int j = 1; j <= k; ++j) {
             const double a0 = static_cast<double>(j - 1) / k, a1 = static_cast<double>(j) / k;
             for (std::size_t p = 0; p < count; ++p) {
-                for (int c = 0; c < 6; ++c) s.de[6 * (begin + p) + static_cast<std::size_t>(c)] = de[6 * p + static_cast<std::size_t>(c)] / k;
-                Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> F0(&s.F[9 * (begin + p)]), F1(&s.F_new[9 * (begin + p)]);
-                const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> A(&Fa[9 * p]), B(&Fb[9 * p]);
+                for (int c = 0; c < 6; ++c)
+                    s.de[6 * (begin + p) + static_cast<std::size_t>(c)] =
+                        de[6 * p + static_cast<std::size_t>(c)] / k;
+                Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> F0(&s.F[9 * (begin + p)]),
+                    F1(&s.F_new[9 * (begin + p)]);
+                const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> A(&Fa[9 * p]),
+                    B(&Fb[9 * p]);
                 F0 = A + a0 * (B - A);
                 F1 = A + a1 * (B - A);
                 s.rho[begin + p] = s.rho0 / F1.determinant();
@@ -853,14 +925,16 @@ void Simulation::Impl::call_material(ParticleSet &s, std::size_t begin, std::siz
     }
     const std::size_t p = begin + static_cast<std::size_t>(std::max<std::int64_t>(0, r.point));
     const std::string where =
-        r.point >= 0 ? fmt::format("particle {} of group '{}' at ({:.6g}, {:.6g}{})", s.id[p],
-                                   sc.groups[static_cast<std::size_t>(s.group[p])].name, s.x[0][p], s.x[1][p],
-                                   dim == 3 ? fmt::format(", {:.6g}", s.x[2][p]) : std::string())
-                     : fmt::format("a batch of {} particles", count);
-    error = fmt::format("step {} (t = {:.6g} s): material '{}' (model '{}', {}) failed at {}: {}{}",
-                        sim.step_ + 1, t, mat.name, mat.spec.model->id(),
-                        mat.spec.model->library().path().string(), where, r.message,
-                        r.status == TALUS_STATUS_CUT_STEP ? " (still asking for a smaller step after 8 cuts)" : "");
+        r.point >= 0
+            ? fmt::format("particle {} of group '{}' at ({:.6g}, {:.6g}{})", s.id[p],
+                          sc.groups[static_cast<std::size_t>(s.group[p])].name, s.x[0][p],
+                          s.x[1][p], dim == 3 ? fmt::format(", {:.6g}", s.x[2][p]) : std::string())
+            : fmt::format("a batch of {} particles", count);
+    error = fmt::format(
+        "step {} (t = {:.6g} s): material '{}' (model '{}', {}) failed at {}: {}{}", sim.step_ + 1,
+        t, mat.name, mat.spec.model->id(), mat.spec.model->library().path().string(), where,
+        r.message,
+        r.status == TALUS_STATUS_CUT_STEP ? " (still asking for a smaller step after 8 cuts)" : "");
 }
 
 // Phase 3, kinematics: F (eq. 39), J, volume and density (eqs. 40-41), the
@@ -885,7 +959,8 @@ void Simulation::Impl::kinematics_and_update(double dt, double t) {
         }
     }
     if (kinematics_done && inverted_set >= 0)
-        error = inversion_message(sets[static_cast<std::size_t>(inverted_set)], inverted_particle, t);
+        error =
+            inversion_message(sets[static_cast<std::size_t>(inverted_set)], inverted_particle, t);
     kinematics_done = false;
     if (!error.empty()) throw Error(error);
 
@@ -909,7 +984,8 @@ void Simulation::Impl::kinematics_and_update(double dt, double t) {
                 const std::size_t p = static_cast<std::size_t>(pp);
                 const std::size_t c = cell_index(s, p);
                 const double corr = dt * (cell_div[c] / cell_vol[c] - s.divv[p]) / dim;
-                for (int d = 0; d < dim; ++d) s.de[6 * p + static_cast<std::size_t>(d)] += corr;
+                for (int d = 0; d < dim; ++d)
+                    s.de[6 * p + static_cast<std::size_t>(d)] += corr;
             }
         }
     }
@@ -927,6 +1003,12 @@ void Simulation::Impl::kinematics_and_update(double dt, double t) {
         }
         const std::size_t B = static_cast<std::size_t>(sim.opt_.batch_size);
         const std::ptrdiff_t nb = static_cast<std::ptrdiff_t>((s.n + B - 1) / B);
+#ifdef _OPENMP
+        // One scratch per thread; the thread count may have changed since
+        // set-up (omp_set_num_threads between steps).
+        if (scratch.size() < static_cast<std::size_t>(omp_get_max_threads()))
+            scratch.resize(static_cast<std::size_t>(omp_get_max_threads()));
+#endif
 #pragma omp parallel for schedule(dynamic, 4)
         for (std::ptrdiff_t bb = 0; bb < nb; ++bb) {
             std::string local;
@@ -1003,26 +1085,30 @@ void Simulation::Impl::remove_or_report_leaving() {
             }
             ++outside;
             if (report.size() < 10)
-                report.push_back(fmt::format("particle {} of group '{}' at ({:.6g}, {:.6g}{})", s.id[p],
-                                             sc.groups[static_cast<std::size_t>(s.group[p])].name, s.x[0][p], s.x[1][p],
-                                             dim == 3 ? fmt::format(", {:.6g}", s.x[2][p]) : std::string()));
+                report.push_back(fmt::format(
+                    "particle {} of group '{}' at ({:.6g}, {:.6g}{})", s.id[p],
+                    sc.groups[static_cast<std::size_t>(s.group[p])].name, s.x[0][p], s.x[1][p],
+                    dim == 3 ? fmt::format(", {:.6g}", s.x[2][p]) : std::string()));
             if (sc.solver.leave == LeavePolicy::stop) s.move(p, keep++); // keep for the report
         }
         if (sc.solver.leave == LeavePolicy::remove) s.resize(keep);
     }
-    for (auto &sl : slab_index) sl.clear(); // indices moved: recompute
+    for (auto &sl : slab_index)
+        sl.clear(); // indices moved: recompute
     if (outside == 0) return;
     if (sc.solver.leave == LeavePolicy::remove) {
         sim.removed_ += static_cast<long>(outside);
         return;
     }
     std::string list;
-    for (const auto &r : report) list += "\n  " + r;
+    for (const auto &r : report)
+        list += "\n  " + r;
     throw Error(fmt::format("step {} (t = {:.6g} s): {} particle(s) left the grid (policy "
                             "solver.leaving_grid: stop; use 'remove' to delete them instead):{}{}",
                             sim.step_, sim.time_, outside, list,
-                            outside > report.size() ? fmt::format("\n  ... and {} more", outside - report.size())
-                                                    : std::string()));
+                            outside > report.size()
+                                ? fmt::format("\n  ... and {} more", outside - report.size())
+                                : std::string()));
 }
 
 // ------------------------------------------------------------ Simulation --
@@ -1033,7 +1119,8 @@ Simulation::Simulation(Scenario &scenario, SolverOptions options)
     if (opt_.threads > 0) omp_set_num_threads(opt_.threads);
 #endif
     if (sc_.loads.size() > 32 || sc_.particle_velocities.size() > 32)
-        throw Error(fmt::format("{}: at most 32 loads and 32 particle_velocities entries", sc_.file));
+        throw Error(
+            fmt::format("{}: at most 32 loads and 32 particle_velocities entries", sc_.file));
     impl_->setup_grid();
     Impl &g = *impl_;
     const int D = sc_.dim;
@@ -1072,9 +1159,11 @@ Simulation::Simulation(Scenario &scenario, SolverOptions options)
         if (gs.stress.kind == InitialStress::Kind::geostatic) {
             surface = gs.stress.surface.value_or(bb.max[static_cast<std::size_t>(D - 1)]);
             if (sc_.gravity[static_cast<std::size_t>(D - 1)] >= 0.0)
-                throw Error(fmt::format("{}: group '{}': a geostatic initial stress needs gravity pointing "
-                                        "down the last axis ({}), got {:g}",
-                                        sc_.file, gs.name, D == 2 ? "y" : "z", sc_.gravity[static_cast<std::size_t>(D - 1)]));
+                throw Error(
+                    fmt::format("{}: group '{}': a geostatic initial stress needs gravity pointing "
+                                "down the last axis ({}), got {:g}",
+                                sc_.file, gs.name, D == 2 ? "y" : "z",
+                                sc_.gravity[static_cast<std::size_t>(D - 1)]));
         }
         const std::vector<double> q_init = m.spec.initial_state;
         std::size_t made = 0;
@@ -1087,9 +1176,10 @@ Simulation::Simulation(Scenario &scenario, SolverOptions options)
                     for (int d = 0; d < D; ++d) {
                         const std::size_t dd = static_cast<std::size_t>(d);
                         if (x[d] < g.origin[dd] || x[d] > g.origin[dd] + sc_.size[dd])
-                            throw Error(fmt::format("{}: group '{}' has particles outside the grid (at "
-                                                    "{:.6g} in direction {}); enlarge grid.size or move the shape",
-                                                    sc_.file, gs.name, x[d], "xyz"[d]));
+                            throw Error(fmt::format(
+                                "{}: group '{}' has particles outside the grid (at "
+                                "{:.6g} in direction {}); enlarge grid.size or move the shape",
+                                sc_.file, gs.name, x[d], "xyz"[d]));
                     }
                     const std::size_t p = s.n;
                     s.resize(p + 1);
@@ -1104,19 +1194,25 @@ Simulation::Simulation(Scenario &scenario, SolverOptions options)
                     s.vol0[p] = V0;
                     s.mass[p] = s.rho0 * V0;
                     s.lp[p] = 0.5 / ppc;
-                    for (int a = 0; a < 9; ++a) s.F[9 * p + static_cast<std::size_t>(a)] = s.F_new[9 * p + static_cast<std::size_t>(a)] = (a % 4 == 0) ? 1.0 : 0.0;
+                    for (int a = 0; a < 9; ++a)
+                        s.F[9 * p + static_cast<std::size_t>(a)] =
+                            s.F_new[9 * p + static_cast<std::size_t>(a)] = (a % 4 == 0) ? 1.0 : 0.0;
                     s.J[p] = 1.0;
                     s.rho[p] = s.rho0;
                     double *sig = &s.stress[6 * p];
                     std::fill_n(sig, 6, 0.0);
-                    if (gs.stress.kind == InitialStress::Kind::uniform) std::copy_n(gs.stress.uniform.begin(), 6, sig);
+                    if (gs.stress.kind == InitialStress::Kind::uniform)
+                        std::copy_n(gs.stress.uniform.begin(), 6, sig);
                     if (gs.stress.kind == InitialStress::Kind::geostatic) {
                         // sigma_v = rho g (surface - depth coordinate), tension
                         // positive; the horizontal stresses are K0 sigma_v.
-                        const double sv = s.rho0 * sc_.gravity[static_cast<std::size_t>(D - 1)] * std::max(0.0, surface - x[D - 1]);
-                        for (int d = 0; d < 3; ++d) sig[d] = d == D - 1 ? sv : gs.stress.k0 * sv;
+                        const double sv = s.rho0 * sc_.gravity[static_cast<std::size_t>(D - 1)] *
+                                          std::max(0.0, surface - x[D - 1]);
+                        for (int d = 0; d < 3; ++d)
+                            sig[d] = d == D - 1 ? sv : gs.stress.k0 * sv;
                     }
-                    std::copy(q_init.begin(), q_init.end(), s.state.begin() + static_cast<std::ptrdiff_t>(p * s.state_size));
+                    std::copy(q_init.begin(), q_init.end(),
+                              s.state.begin() + static_cast<std::ptrdiff_t>(p * s.state_size));
                     std::fill_n(&s.de[6 * p], 6, 0.0);
                     std::fill_n(&s.L[9 * p], 9, 0.0);
                     std::fill_n(&s.C[9 * p], 9, 0.0);
@@ -1125,20 +1221,23 @@ Simulation::Simulation(Scenario &scenario, SolverOptions options)
                     std::uint32_t lm = 0, fm = 0;
                     for (std::size_t l = 0; l < sc_.loads.size(); ++l) {
                         const Load &ld = sc_.loads[l];
-                        if ((!ld.group || *ld.group == gi) && (!ld.box || ld.box->contains(x, D))) lm |= 1u << l;
+                        if ((!ld.group || *ld.group == gi) && (!ld.box || ld.box->contains(x, D)))
+                            lm |= 1u << l;
                     }
                     for (std::size_t f = 0; f < sc_.particle_velocities.size(); ++f) {
                         const ParticleVelocity &pv = sc_.particle_velocities[f];
-                        if ((!pv.group || *pv.group == gi) && (!pv.box || pv.box->contains(x, D))) fm |= 1u << f;
+                        if ((!pv.group || *pv.group == gi) && (!pv.box || pv.box->contains(x, D)))
+                            fm |= 1u << f;
                     }
                     s.load_mask[p] = lm;
                     s.fix_mask[p] = fm;
                     ++made;
                 }
         if (made == 0)
-            throw Error(fmt::format("{}: group '{}' contains no particle: its shape holds no point of the "
-                                    "{}-per-cell lattice (make it larger or raise particles_per_cell)",
-                                    sc_.file, gs.name, ppc));
+            throw Error(
+                fmt::format("{}: group '{}' contains no particle: its shape holds no point of the "
+                            "{}-per-cell lattice (make it larger or raise particles_per_cell)",
+                            sc_.file, gs.name, ppc));
     }
 
     // The plugins see the initial state once (zero increment) and report
@@ -1147,7 +1246,8 @@ Simulation::Simulation(Scenario &scenario, SolverOptions options)
         const std::size_t B = static_cast<std::size_t>(opt_.batch_size);
         std::string error;
         for (std::size_t begin = 0; begin < s.n && error.empty(); begin += B)
-            impl_->call_material(s, begin, std::min(B, s.n - begin), 0.0, 0.0, impl_->scratch[0], error, 0);
+            impl_->call_material(s, begin, std::min(B, s.n - begin), 0.0, 0.0, impl_->scratch[0],
+                                 error, 0);
         if (!error.empty()) throw Error("initial state: " + error);
     }
     impl_->sort_particles();
@@ -1157,7 +1257,8 @@ Simulation::~Simulation() = default;
 
 std::size_t Simulation::particle_count() const {
     std::size_t n = 0;
-    for (const auto &s : sets_) n += s.n;
+    for (const auto &s : sets_)
+        n += s.n;
     return n;
 }
 
@@ -1170,12 +1271,14 @@ double Simulation::critical_dt() const {
         for (std::ptrdiff_t pp = 0; pp < n; ++pp) {
             const std::size_t p = static_cast<std::size_t>(pp);
             double v2 = 0.0;
-            for (int d = 0; d < sc_.dim; ++d) v2 += s.v[static_cast<std::size_t>(d)][p] * s.v[static_cast<std::size_t>(d)][p];
+            for (int d = 0; d < sc_.dim; ++d)
+                v2 += s.v[static_cast<std::size_t>(d)][p] * s.v[static_cast<std::size_t>(d)][p];
             local = std::max(local, s.c[p] + std::sqrt(v2));
         }
         worst = std::max(worst, local);
     }
-    return worst > 0.0 ? sc_.solver.cfl * sc_.cell / worst : std::numeric_limits<double>::infinity();
+    return worst > 0.0 ? sc_.solver.cfl * sc_.cell / worst
+                       : std::numeric_limits<double>::infinity();
 }
 
 void Simulation::step(double max_dt) {
@@ -1185,7 +1288,7 @@ void Simulation::step(double max_dt) {
         auto tm = g.time_phase(0);
         // max(c + |v|) comes from the last pass of the previous step.
         dt_crit = g.max_speed >= 0.0 ? (g.max_speed > 0.0 ? sc_.solver.cfl * sc_.cell / g.max_speed
-                                                           : std::numeric_limits<double>::infinity())
+                                                          : std::numeric_limits<double>::infinity())
                                      : critical_dt();
     }
     double dt = dt_crit;
@@ -1193,13 +1296,15 @@ void Simulation::step(double max_dt) {
         dt = *sc_.solver.dt;
         if (dt > dt_crit && !warned_dt_) {
             warned_dt_ = true;
-            warnings_.push_back(fmt::format("step {} (t = {:.6g} s): the fixed dt {:.4g} s exceeds the "
-                                            "stability limit cfl h / max(c + |v|) = {:.4g} s",
-                                            step_ + 1, time_, dt, dt_crit));
+            warnings_.push_back(
+                fmt::format("step {} (t = {:.6g} s): the fixed dt {:.4g} s exceeds the "
+                            "stability limit cfl h / max(c + |v|) = {:.4g} s",
+                            step_ + 1, time_, dt, dt_crit));
         }
     }
     dt = std::min(dt, max_dt);
-    if (!(dt > 0.0)) throw Error(fmt::format("step {}: time step {} is not positive", step_ + 1, dt));
+    if (!(dt > 0.0))
+        throw Error(fmt::format("step {}: time step {} is not positive", step_ + 1, dt));
     const double t = time_;
 
     {
@@ -1233,13 +1338,15 @@ void Simulation::step(double max_dt) {
             // velocity goes there.
             double *a = g.acc.data();
             for (std::size_t i = 0; i < g.n_nodes; ++i)
-                for (int d = 0; d < sc_.dim; ++d) a[Impl::kRec * i + Impl::kP + static_cast<std::size_t>(d)] = 0.0;
+                for (int d = 0; d < sc_.dim; ++d)
+                    a[Impl::kRec * i + Impl::kP + static_cast<std::size_t>(d)] = 0.0;
             g.p2g(g, false, false, true, t);
             for (std::size_t i = 0; i < g.n_nodes; ++i) {
                 const double m = a[Impl::kRec * i + Impl::kM];
                 for (int d = 0; d < sc_.dim; ++d)
                     a[Impl::kRec * i + Impl::kF + static_cast<std::size_t>(d)] =
-                        m > 0.0 ? a[Impl::kRec * i + Impl::kP + static_cast<std::size_t>(d)] / m : 0.0;
+                        m > 0.0 ? a[Impl::kRec * i + Impl::kP + static_cast<std::size_t>(d)] / m
+                                : 0.0;
             }
             g.apply_bc(a, Impl::kF, t + dt);
             g.g2p_gradient(g, a, Impl::kF);
@@ -1272,11 +1379,18 @@ void Simulation::step(double max_dt) {
     g.finish_step();
 }
 
-std::array<double, Simulation::kPhases> Simulation::phase_seconds() const { return impl_->phase_seconds; }
+std::array<double, Simulation::kPhases> Simulation::phase_seconds() const {
+    return impl_->phase_seconds;
+}
 
 const char *Simulation::phase_name(int k) {
-    static const char *names[kPhases] = {"time step", "sort and bin", "P2G", "grid update", "G2P",
-                                         "kinematics and material", "positions and leaving check"};
+    static const char *names[kPhases] = {"time step",
+                                         "sort and bin",
+                                         "P2G",
+                                         "grid update",
+                                         "G2P",
+                                         "kinematics and material",
+                                         "positions and leaving check"};
     return names[k];
 }
 
@@ -1290,7 +1404,8 @@ int Simulation::max_threads() {
 
 double Simulation::grid_mass() const {
     double m = 0.0;
-    for (std::size_t i = 0; i < impl_->n_nodes; ++i) m += impl_->acc[Impl::kRec * i + Impl::kM];
+    for (std::size_t i = 0; i < impl_->n_nodes; ++i)
+        m += impl_->acc[Impl::kRec * i + Impl::kM];
     return m;
 }
 
@@ -1317,14 +1432,17 @@ Diagnostics Simulation::diagnostics() const {
                 x[d] = s.x[static_cast<std::size_t>(d)][p];
             }
             dg.mass += m;
-            for (int d = 0; d < 3; ++d) dg.momentum[static_cast<std::size_t>(d)] += m * v[d];
+            for (int d = 0; d < 3; ++d)
+                dg.momentum[static_cast<std::size_t>(d)] += m * v[d];
             dg.kinetic_energy += 0.5 * m * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
             dg.strain_energy += s.work[p];
             const double *C = &s.C[9 * p];
             dg.angular_momentum[2] += m * (x[0] * v[1] - x[1] * v[0]) + m * Dcoef * (C[3] - C[1]);
             if (D == 3) {
-                dg.angular_momentum[0] += m * (x[1] * v[2] - x[2] * v[1]) + m * Dcoef * (C[7] - C[5]);
-                dg.angular_momentum[1] += m * (x[2] * v[0] - x[0] * v[2]) + m * Dcoef * (C[2] - C[6]);
+                dg.angular_momentum[0] +=
+                    m * (x[1] * v[2] - x[2] * v[1]) + m * Dcoef * (C[7] - C[5]);
+                dg.angular_momentum[1] +=
+                    m * (x[2] * v[0] - x[0] * v[2]) + m * Dcoef * (C[2] - C[6]);
             }
         }
     }

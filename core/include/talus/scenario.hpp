@@ -33,12 +33,12 @@ struct Box {
 // Geometry of a particle group.
 struct GroupShape {
     enum class Kind { box, sphere, cylinder, polygon } kind = Kind::box;
-    Box box;                                     // box
-    Vec3 center{0, 0, 0};                        // sphere (disk in 2D), cylinder
-    double radius = 0.0;                         // sphere, cylinder
-    int axis = 2;                                // cylinder axis (0, 1, 2)
-    double zmin = 0.0, zmax = 0.0;               // cylinder extent along its axis
-    std::vector<std::array<double, 2>> polygon;  // 2D polygon vertices
+    Box box;                                    // box
+    Vec3 center{0, 0, 0};                       // sphere (disk in 2D), cylinder
+    double radius = 0.0;                        // sphere, cylinder
+    int axis = 2;                               // cylinder axis (0, 1, 2)
+    double zmin = 0.0, zmax = 0.0;              // cylinder extent along its axis
+    std::vector<std::array<double, 2>> polygon; // 2D polygon vertices
     bool contains(const double *x, int dim) const;
     Box bounds(int dim) const;
 };

@@ -75,10 +75,10 @@ struct BSpline2Shape {
     static inline void eval(double xi, double /*lp*/, int &base, double *w, double *dw) {
         const double fl = fast_floor(xi - 0.5);
         base = static_cast<int>(fl);
-        const double r0 = xi - fl; // distance to node base, in [0.5, 1.5)
-        const double a = 1.5 - r0; // in (0, 1]
+        const double r0 = xi - fl;  // distance to node base, in [0.5, 1.5)
+        const double a = 1.5 - r0;  // in (0, 1]
         const double r1 = r0 - 1.0; // in [-0.5, 0.5)
-        const double c = r0 - 0.5; // 1.5 + r2, in [0, 1)
+        const double c = r0 - 0.5;  // 1.5 + r2, in [0, 1)
         w[0] = 0.5 * a * a;
         w[1] = 0.75 - r1 * r1;
         w[2] = 0.5 * c * c;

@@ -27,7 +27,7 @@ struct ParticleSet {
     std::vector<std::int32_t> group; // index into Scenario::groups
     std::array<std::vector<double>, 3> x, x0, v, dx;
     std::vector<double> mass, vol0, lp; // lp: GIMP half-width (cells)
-    std::vector<double> F, F_new;        // 9 per point, row-major
+    std::vector<double> F, F_new;       // 9 per point, row-major
     std::vector<double> J, rho;
     std::vector<double> stress; // 6 per point, Voigt, Cauchy, tension +
     std::vector<double> state;  // state_size per point
@@ -58,9 +58,9 @@ struct Diagnostics {
 };
 
 struct SolverOptions {
-    int threads = 0;       // 0: OpenMP's default
-    int batch_size = 128;  // points per plugin call
-    int sort_every = 25;   // steps between re-sorting particles by cell
+    int threads = 0;      // 0: OpenMP's default
+    int batch_size = 128; // points per plugin call
+    int sort_every = 25;  // steps between re-sorting particles by cell
 };
 
 class Simulation {

@@ -1,0 +1,226 @@
+// Boundary conditions, loads and initial states, each against a closed form.
+#include "solver_helpers.hpp"
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+
+using talus::test::advance;
+using talus::test::contains;
+using talus::test::sim_from_text;
+using talus::test::totals;
+
+namespace {
+
+const char *kHead = "talus: 1\ndimension: 2\n"
+                    "materials:\n  m: {model: linear_elastic, density: 1000, youngs_modulus: 1.0e6, poisson_ratio: 0.3}\n";
+
+std::string block(const std::string &extra, const std::string &box = "{min: [0.2, 0.0], max: [0.6, 0.2]}",
+                  const std::string &grid = "{origin: [0, 0], size: [4, 1], cell: 0.05}") {
+    return std::string(kHead) + "grid: " + grid + "\n" +
+           "groups:\n  b: {material: m, particles_per_cell: 2, shape: {box: " + box + "}}\n" + extra +
+           "time: {end: 10.0}\n";
+}
+
+double mean_v(const talus::Simulation &sim, int d) {
+    const auto t = totals(sim);
+    return t.p[d] / t.mass;
+}
+
+} // namespace
+
+// A block sliding on a slip floor keeps its horizontal velocity: the slip
+// condition removes only the normal component (to round-off).
+TEST(BoundaryConditions, SlipFloorKeepsTangentialVelocity) {
+    auto s = sim_from_text(block("boundaries: {y-: slip}\ngravity: [0, -9.81]\n"));
+    for (auto &set : s->sim->sets())
+        for (std::size_t p = 0; p < set.n; ++p) set.v[0][p] = 1.0;
+    advance(*s->sim, 0.5);
+    EXPECT_NEAR(mean_v(*s->sim, 0), 1.0, 1e-12);
+    // It rests on the floor, bouncing elastically: static compression
+    // rho g H^2 / 2M = 1.5e-4 m at omega = pi c / 2H = 290 rad/s is a
+    // vertical velocity amplitude of 0.04 m/s; falling through would be -5.
+    EXPECT_NEAR(mean_v(*s->sim, 1), 0.0, 0.05);
+}
+
+// A block sliding on a Coulomb floor decelerates at mu g: v(t) = v0 - mu g t
+// until it stops. The bottom layer of nodes carries the whole contact, and
+// the block's own elastic bounce modulates the normal force, so the mean
+// velocity follows the closed form to a few percent of v0; 5 % is the bound.
+TEST(BoundaryConditions, CoulombFrictionDeceleratesAtMuG) {
+    const double mu = 0.3, g = 9.81, v0 = 1.0;
+    auto s = sim_from_text(block(fmt::format("boundaries: {{y-: {{friction: {}}}}}\ngravity: [0, -{}]\n", mu, g)));
+    for (auto &set : s->sim->sets())
+        for (std::size_t p = 0; p < set.n; ++p) set.v[0][p] = v0;
+    for (double t : {0.1, 0.2, 0.3}) {
+        advance(*s->sim, t);
+        EXPECT_NEAR(mean_v(*s->sim, 0), v0 - mu * g * t, 0.05 * v0) << "t = " << t;
+    }
+    advance(*s->sim, 0.6); // stopped at t = v0 / (mu g) = 0.34 s, and stays
+    EXPECT_NEAR(mean_v(*s->sim, 0), 0.0, 0.02 * v0);
+}
+
+// A fixed face stops the nodes on it: a block dropped on a fixed floor under
+// gravity stays above it and comes to rest (mean vertical velocity about
+// zero; the remaining elastic oscillation is a few cm/s).
+TEST(BoundaryConditions, FixedFaceHoldsItsNodes) {
+    auto s = sim_from_text(block("boundaries: {y-: fixed}\ngravity: [0, -9.81]\n"));
+    advance(*s->sim, 0.3);
+    EXPECT_NEAR(mean_v(*s->sim, 1), 0.0, 0.05);
+    double lowest = 1e9;
+    for (const auto &set : s->sim->sets())
+        for (std::size_t p = 0; p < set.n; ++p) lowest = std::min(lowest, set.x[1][p]);
+    EXPECT_GT(lowest, 0.0);
+}
+
+// Prescribed nodal velocity on every node the block touches: the block moves
+// rigidly with it, v = 0.5 t (a ramp), exactly.
+TEST(BoundaryConditions, PrescribedNodalVelocityDrivesTheBlock) {
+    auto s = sim_from_text(block("nodal_velocities:\n  - {box: {min: [0, 0], max: [4, 1]}, velocity: {x: [[0, 0], [1, 0.5]]}}\n",
+                                 "{min: [1.0, 0.4], max: [1.4, 0.6]}"));
+    advance(*s->sim, 0.4);
+    for (const auto &set : s->sim->sets())
+        for (std::size_t p = 0; p < set.n; ++p) {
+            ASSERT_NEAR(set.v[0][p], 0.5 * 0.4, 1e-12);
+            ASSERT_NEAR(set.v[1][p], 0.0, 1e-12);
+        }
+}
+
+// A particle velocity fixity holds the group's velocity and moves it by the
+// integral of the prescribed function (trapezoidal, exact for linear).
+TEST(BoundaryConditions, ParticleVelocityFixity) {
+    auto s = sim_from_text(block("particle_velocities:\n  - {group: b, velocity: {x: [[0, 0], [1, 1.0]], y: 0.25}}\n",
+                                 "{min: [1.0, 0.4], max: [1.4, 0.6]}"));
+    advance(*s->sim, 0.5);
+    for (const auto &set : s->sim->sets())
+        for (std::size_t p = 0; p < set.n; ++p) {
+            ASSERT_NEAR(set.v[0][p], 0.5, 1e-12);
+            ASSERT_NEAR(set.x[0][p] - set.x0[0][p], 0.5 * 0.5 * 0.5, 1e-12);
+            ASSERT_NEAR(set.x[1][p] - set.x0[1][p], 0.25 * 0.5, 1e-12);
+        }
+}
+
+// Loads on a free block without gravity: a point load F on every particle
+// accelerates it at F/m; a traction t on every particle at t V0^(1/2) / m in
+// 2D. Uniform loads keep the block stress-free, so these are exact.
+TEST(Loads, PointLoadAndTractionAccelerateAsNewtonSays) {
+    for (const char *kind : {"point", "traction"}) {
+        auto s = sim_from_text(block(fmt::format("loads:\n  - {{group: b, {}: [2.0, [[0, 0], [1, -1.0]]]}}\n", kind),
+                                     "{min: [1.0, 0.4], max: [1.4, 0.6]}"));
+        const auto &set0 = s->sim->sets()[0];
+        const double m = set0.mass[0], V0 = set0.vol0[0];
+        const double scale = std::string(kind) == "traction" ? std::sqrt(V0) : 1.0;
+        advance(*s->sim, 0.2);
+        // Forces act at the start of each step: v = sum F(t_k) dt / m. The
+        // constant x-component integrates exactly (1e-9 allows round-off of
+        // ~100 steps); the y-ramp -t is sampled at step starts.
+        const double ax = 2.0 * scale / m;
+        EXPECT_NEAR(mean_v(*s->sim, 0), ax * 0.2, 1e-9 * ax) << kind;
+        // The ramp is sampled at the step starts: between -t^2/2 (exact
+        // integral) and that minus one step's worth.
+        const double ay_exact = -scale / m * 0.5 * 0.2 * 0.2;
+        EXPECT_LE(mean_v(*s->sim, 1), ay_exact * 0.9) << kind;
+        EXPECT_GE(mean_v(*s->sim, 1), ay_exact * 1.1) << kind;
+    }
+}
+
+// Gravity with a ramp: g(t) = g min(1, t / T); v(t) = g t^2 / (2T) before T.
+// Gravity is sampled at step starts (forward Euler on a linear ramp), which
+// undershoots by g dt t / (2T): 2 % at the test's resolution.
+TEST(Loads, GravityRamp) {
+    auto s = sim_from_text(block("gravity: {value: [0, -10], ramp: 1.0}\n", "{min: [1.0, 0.4], max: [1.4, 0.6]}",
+                                 "{origin: [0, -10], size: [4, 11], cell: 0.05}"));
+    advance(*s->sim, 0.5);
+    EXPECT_NEAR(mean_v(*s->sim, 1), -10.0 * 0.25 / 2.0, 0.02 * 1.25);
+    advance(*s->sim, 1.2);
+    EXPECT_NEAR(mean_v(*s->sim, 1), -10.0 * 0.5 - 10.0 * 0.2, 0.02 * 7.0);
+}
+
+// Geostatic initial stress: sigma_v = rho g (surface - y), sigma_h = K0
+// sigma_v (xx and zz in plane strain), no shear, exactly at t = 0.
+TEST(InitialState, GeostaticStress) {
+    auto s = sim_from_text(std::string(kHead) +
+                           "grid: {origin: [0, 0], size: [2, 2], cell: 0.1}\n"
+                           "groups:\n  soil: {material: m, particles_per_cell: 2, shape: {box: {min: [0, 0], max: [2, 1.5]}},\n"
+                           "         initial_stress: {geostatic: {k0: 0.4}}}\n"
+                           "boundaries: {y-: fixed}\ngravity: [0, -9.81]\ntime: {end: 1}\n");
+    const auto &set = s->sim->sets()[0];
+    for (std::size_t p = 0; p < set.n; ++p) {
+        const double sv = -1000.0 * 9.81 * (1.5 - set.x[1][p]);
+        ASSERT_NEAR(set.stress[6 * p + 1], sv, 1e-9 * 15000);
+        ASSERT_NEAR(set.stress[6 * p + 0], 0.4 * sv, 1e-9 * 15000);
+        ASSERT_NEAR(set.stress[6 * p + 2], 0.4 * sv, 1e-9 * 15000);
+        ASSERT_EQ(set.stress[6 * p + 3], 0.0);
+    }
+}
+
+// Leaving the grid: "stop" names the particles; "remove" deletes and counts.
+TEST(LeavingGrid, StopNamesTheParticlesRemoveCountsThem) {
+    const std::string base = std::string(kHead) + "grid: {origin: [0, 0], size: [1, 1], cell: 0.1}\n"
+                                                  "groups:\n  fast: {material: m, particles_per_cell: 1, velocity: [5, 0],\n"
+                                                  "         shape: {box: {min: [0.7, 0.4], max: [0.9, 0.6]}}}\n"
+                                                  "time: {end: 1}\n";
+    auto stop = sim_from_text(base);
+    try {
+        advance(*stop->sim, 0.2);
+        FAIL() << "expected the particles to leave";
+    } catch (const talus::Error &e) {
+        EXPECT_TRUE(contains(e.what(), "particle(s) left the grid (policy solver.leaving_grid: stop")) << e.what();
+        EXPECT_TRUE(contains(e.what(), "of group 'fast' at (1.")) << e.what();
+    }
+    auto rm = sim_from_text(base + "solver: {leaving_grid: remove}\n");
+    advance(*rm->sim, 0.2);
+    EXPECT_EQ(rm->sim->particle_count(), 0u);
+    EXPECT_EQ(rm->sim->diagnostics().removed, 4);
+}
+
+// A material that fails stops the run with plugin, group, particle and step.
+TEST(MaterialFailure, NamesPluginGroupParticleAndStep) {
+    try {
+        auto s = sim_from_text("talus: 1\ndimension: 2\nplugins: [fixture_throws_sdk]\n"
+                               "grid: {origin: [0, 0], size: [1, 1], cell: 0.1}\n"
+                               "materials:\n  bad: {model: thrower, density: 1000, stiffness: 1.0e6}\n"
+                               "groups:\n  lump: {material: bad, particles_per_cell: 1, shape: {box: {min: [0.4, 0.4], max: [0.6, 0.6]}}}\n"
+                               "time: {end: 1}\n",
+                               {talus::test::fixture_dir()});
+        FAIL() << "expected a failure";
+    } catch (const talus::Error &e) {
+        const std::string m = e.what();
+        EXPECT_TRUE(contains(m, "material 'bad' (model 'thrower',")) << m;
+        EXPECT_TRUE(contains(m, "fixture_throws_sdk.so) failed at particle 0 of group 'lump'")) << m;
+        EXPECT_TRUE(contains(m, "step 1")) << m;
+        EXPECT_TRUE(contains(m, "the model gave up on purpose")) << m;
+    }
+}
+
+// Cut-step requests are honoured by sub-stepping the material: the picky
+// fixture is linear elasticity refusing increments above 2e-4, so a run
+// with it must match the same run with linear_elastic (sub-stepping a linear
+// law is exact up to round-off: 1e-9 of the stress).
+TEST(MaterialFailure, CutStepIsSubSteppedAndExact) {
+    auto run = [](const std::string &model, const std::string &plugins) {
+        auto s = sim_from_text("talus: 1\ndimension: 2\n" + plugins +
+                                   "grid: {origin: [0, 0], size: [1, 1], cell: 0.05}\n"
+                                   "materials:\n  m: {model: " +
+                                   model +
+                                   ", density: 1000, youngs_modulus: 1.0e6, poisson_ratio: 0.3}\n"
+                                   "groups:\n  b: {material: m, particles_per_cell: 2, velocity: [0, -3],\n"
+                                   "      shape: {box: {min: [0.3, 0.05], max: [0.7, 0.3]}}}\n"
+                                   "boundaries: {y-: fixed}\nsolver: {dt: 1.0e-4}\ntime: {end: 1}\n",
+                               {talus::test::fixture_dir()});
+        advance(*s->sim, 0.01);
+        return s;
+    };
+    auto a = run("linear_elastic", "");
+    auto b = run("picky_elastic", "plugins: [fixture_cut_step]\n");
+    EXPECT_GT(b->sim->diagnostics().cut_steps, 0);
+    const auto &sa = a->sim->sets()[0];
+    const auto &sb = b->sim->sets()[0];
+    ASSERT_EQ(sa.n, sb.n);
+    double smax = 0, diff = 0;
+    for (std::size_t i = 0; i < 6 * sa.n; ++i) {
+        smax = std::max(smax, std::abs(sa.stress[i]));
+        diff = std::max(diff, std::abs(sa.stress[i] - sb.stress[i]));
+    }
+    EXPECT_GT(smax, 1e3);
+    EXPECT_LT(diff, 1e-9 * smax);
+}
