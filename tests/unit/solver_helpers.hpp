@@ -25,7 +25,8 @@ struct Sim {
     std::unique_ptr<Simulation> sim;
 };
 
-inline std::unique_ptr<Sim> make_sim(const yaml::Node &root, std::vector<std::filesystem::path> dirs = {}) {
+inline std::unique_ptr<Sim> make_sim(const yaml::Node &root,
+                                     std::vector<std::filesystem::path> dirs = {}) {
     unsetenv("TALUS_PLUGIN_PATH");
     auto s = std::make_unique<Sim>();
     s->registry = PluginRegistry(std::move(dirs));
@@ -34,7 +35,8 @@ inline std::unique_ptr<Sim> make_sim(const yaml::Node &root, std::vector<std::fi
     return s;
 }
 
-inline std::unique_ptr<Sim> sim_from_text(const std::string &yaml, std::vector<std::filesystem::path> dirs = {}) {
+inline std::unique_ptr<Sim> sim_from_text(const std::string &yaml,
+                                          std::vector<std::filesystem::path> dirs = {}) {
     return make_sim(yaml::load_string(yaml, "test.yaml"), std::move(dirs));
 }
 
@@ -65,7 +67,8 @@ inline std::vector<std::vector<double>> read_numeric_csv(const std::filesystem::
         std::vector<double> row;
         std::stringstream ss(line);
         std::string cell;
-        while (std::getline(ss, cell, ',')) row.push_back(std::stod(cell));
+        while (std::getline(ss, cell, ','))
+            row.push_back(std::stod(cell));
         rows.push_back(row);
     }
     return rows;
@@ -83,7 +86,8 @@ inline Totals totals(const Simulation &sim) {
             t.mass += s.mass[k];
             for (int d = 0; d < 3; ++d) {
                 t.p[d] += s.mass[k] * s.v[static_cast<std::size_t>(d)][k];
-                t.ke += 0.5 * s.mass[k] * s.v[static_cast<std::size_t>(d)][k] * s.v[static_cast<std::size_t>(d)][k];
+                t.ke += 0.5 * s.mass[k] * s.v[static_cast<std::size_t>(d)][k] *
+                        s.v[static_cast<std::size_t>(d)][k];
             }
         }
     return t;

@@ -13,14 +13,15 @@ using talus::test::contains;
 
 namespace {
 
-const std::string kGood = "talus: 1\n"
-                          "dimension: 2\n"
-                          "grid: {origin: [0, 0], size: [1, 1], cell: 0.1}\n"
-                          "materials:\n"
-                          "  sand: {model: linear_elastic, density: 1800, youngs_modulus: 1.0e7, poisson_ratio: 0.3}\n"
-                          "groups:\n"
-                          "  column: {material: sand, shape: {box: {min: [0, 0], max: [0.2, 0.4]}}}\n"
-                          "time: {end: 0.1}\n";
+const std::string kGood =
+    "talus: 1\n"
+    "dimension: 2\n"
+    "grid: {origin: [0, 0], size: [1, 1], cell: 0.1}\n"
+    "materials:\n"
+    "  sand: {model: linear_elastic, density: 1800, youngs_modulus: 1.0e7, poisson_ratio: 0.3}\n"
+    "groups:\n"
+    "  column: {material: sand, shape: {box: {min: [0, 0], max: [0.2, 0.4]}}}\n"
+    "time: {end: 0.1}\n";
 
 std::string error_of(const std::string &text) {
     unsetenv("TALUS_PLUGIN_PATH");
@@ -48,48 +49,64 @@ TEST(ScenarioErrors, MisspeltKey) {
     const std::string m = error_of(with("time: {end: 0.1}", "tiem: {end: 0.1}"));
     EXPECT_TRUE(contains(m, "s.yaml:8:1: error: unknown key 'tiem'; did you mean 'time'?")) << m;
     const std::string p = error_of(with("poisson_ratio: 0.3", "poison_ratio: 0.3"));
-    EXPECT_TRUE(contains(p, "s.yaml:5:71: error: unknown key 'materials.sand.poison_ratio'; did you mean "
-                            "'poisson_ratio'?"))
+    EXPECT_TRUE(
+        contains(p, "s.yaml:5:71: error: unknown key 'materials.sand.poison_ratio'; did you mean "
+                    "'poisson_ratio'?"))
         << p;
 }
 
 TEST(ScenarioErrors, ValueOutOfBoundsWithUnitAndBounds) {
     const std::string m = error_of(with("poisson_ratio: 0.3", "poisson_ratio: 0.7"));
-    EXPECT_TRUE(contains(m, "s.yaml:5:86: error: 'materials.sand.poisson_ratio' value 0.7 is out of range: "
-                            "expected -1 < poisson_ratio < 0.5 (unit -)"))
+    EXPECT_TRUE(
+        contains(m, "s.yaml:5:86: error: 'materials.sand.poisson_ratio' value 0.7 is out of range: "
+                    "expected -1 < poisson_ratio < 0.5 (unit -)"))
         << m;
-    EXPECT_TRUE(contains(error_of(with("cell: 0.1", "cell: -0.1")), "'grid.cell' expected cell (m) > 0"));
-    EXPECT_TRUE(contains(error_of(with("cell: 0.1", "cell: 0.3")), "is not a whole number of cells"));
+    EXPECT_TRUE(
+        contains(error_of(with("cell: 0.1", "cell: -0.1")), "'grid.cell' expected cell (m) > 0"));
+    EXPECT_TRUE(
+        contains(error_of(with("cell: 0.1", "cell: 0.3")), "is not a whole number of cells"));
 }
 
 TEST(ScenarioErrors, WrongType) {
     const std::string m = error_of(with("youngs_modulus: 1.0e7", "youngs_modulus: [1, 2]"));
-    EXPECT_TRUE(contains(m, "s.yaml:5:64: error: 'materials.sand.youngs_modulus' expected a number")) << m;
-    EXPECT_TRUE(contains(error_of(with("dimension: 2", "dimension: two")), "'dimension' expected an integer, got 'two'"));
-    EXPECT_TRUE(contains(error_of(with("size: [1, 1]", "size: [1, 1, 1]")), "expected 2 numbers (m), one per dimension"));
+    EXPECT_TRUE(
+        contains(m, "s.yaml:5:64: error: 'materials.sand.youngs_modulus' expected a number"))
+        << m;
+    EXPECT_TRUE(contains(error_of(with("dimension: 2", "dimension: two")),
+                         "'dimension' expected an integer, got 'two'"));
+    EXPECT_TRUE(contains(error_of(with("size: [1, 1]", "size: [1, 1, 1]")),
+                         "expected 2 numbers (m), one per dimension"));
 }
 
 TEST(ScenarioErrors, MissingPlugin) {
     const std::string m = error_of(with("time:", "plugins: [no_such_plugin]\ntime:"));
-    EXPECT_TRUE(contains(m, "s.yaml:8:11: error: 'plugins[0]' plugin library 'no_such_plugin' not found; looked for:")) << m;
+    EXPECT_TRUE(contains(
+        m,
+        "s.yaml:8:11: error: 'plugins[0]' plugin library 'no_such_plugin' not found; looked for:"))
+        << m;
     const std::string u = error_of(with("model: linear_elastic", "model: mohr_coulomb"));
-    EXPECT_TRUE(contains(u, "s.yaml:5:17: error: 'materials.sand.model' no plugin offers the material model "
-                            "'mohr_coulomb'"))
+    EXPECT_TRUE(contains(
+        u, "s.yaml:5:17: error: 'materials.sand.model' no plugin offers the material model "
+           "'mohr_coulomb'"))
         << u;
 }
 
 TEST(ScenarioErrors, GroupWithUnknownMaterial) {
     const std::string m = error_of(with("material: sand", "material: snad"));
-    EXPECT_TRUE(contains(m, "s.yaml:7:22: error: 'groups.column.material' no material named 'snad' under "
-                            "materials (did you mean 'sand'?)"))
+    EXPECT_TRUE(
+        contains(m, "s.yaml:7:22: error: 'groups.column.material' no material named 'snad' under "
+                    "materials (did you mean 'sand'?)"))
         << m;
 }
 
 TEST(ScenarioErrors, EnumeratedValuesSuggest) {
-    EXPECT_TRUE(contains(error_of(kGood + "solver: {scheme: mulsl}\n"),
-                         "unknown value 'mulsl' (did you mean 'musl'?); expected one of: usl, usf, musl, usavg"));
-    EXPECT_TRUE(contains(error_of(kGood + "boundaries: {x-: fixd}\n"), "unknown value 'fixd' (did you mean 'fixed'?)"));
-    EXPECT_TRUE(contains(error_of(kGood + "boundaries: {z-: fixed}\n"), "a 2D scenario has no face 'z-'"));
+    EXPECT_TRUE(contains(
+        error_of(kGood + "solver: {scheme: mulsl}\n"),
+        "unknown value 'mulsl' (did you mean 'musl'?); expected one of: usl, usf, musl, usavg"));
+    EXPECT_TRUE(contains(error_of(kGood + "boundaries: {x-: fixd}\n"),
+                         "unknown value 'fixd' (did you mean 'fixed'?)"));
+    EXPECT_TRUE(
+        contains(error_of(kGood + "boundaries: {z-: fixed}\n"), "a 2D scenario has no face 'z-'"));
     EXPECT_TRUE(contains(error_of(kGood + "output: {probes: [{name: a, centre_of_mass: colum}]}\n"),
                          "no group named 'colum' (did you mean 'column'?)"));
     EXPECT_TRUE(contains(error_of(kGood + "solver: {transfer: {type: apic, alpha: 0.5}}\n"),
@@ -108,12 +125,15 @@ TEST(ScenarioDocs, ReferenceListsEveryKeyAndItsExamplesAreValid) {
     const std::string doc = ss.str();
     std::set<std::string> documented;
     const std::regex row(R"(^\| `([a-z0-9_.*\[\]+-]+)` \|)", std::regex::multiline);
-    for (auto it = std::sregex_iterator(doc.begin(), doc.end(), row); it != std::sregex_iterator(); ++it)
+    for (auto it = std::sregex_iterator(doc.begin(), doc.end(), row); it != std::sregex_iterator();
+         ++it)
         documented.insert((*it)[1]);
     const std::vector<std::string> keys = talus::scenario_schema();
-    for (const std::string &k : keys) EXPECT_TRUE(documented.count(k)) << "undocumented key: " << k;
+    for (const std::string &k : keys)
+        EXPECT_TRUE(documented.count(k)) << "undocumented key: " << k;
     for (const std::string &d : documented)
-        EXPECT_TRUE(std::find(keys.begin(), keys.end(), d) != keys.end()) << "documented but not read: " << d;
+        EXPECT_TRUE(std::find(keys.begin(), keys.end(), d) != keys.end())
+            << "documented but not read: " << d;
     int examples = 0;
     std::size_t pos = 0;
     while ((pos = doc.find("```yaml\n", pos)) != std::string::npos) {
@@ -130,11 +150,14 @@ TEST(ScenarioDocs, ReferenceListsEveryKeyAndItsExamplesAreValid) {
 // Every scenario shipped in configs/ is valid.
 TEST(ScenarioDocs, EveryConfigValidates) {
     int n = 0;
-    for (const auto &e : std::filesystem::recursive_directory_iterator(talus::test::source_dir() / "configs")) {
-        if (e.path().extension() != ".yaml" || e.path().parent_path().filename() == "point") continue;
+    for (const auto &e :
+         std::filesystem::recursive_directory_iterator(talus::test::source_dir() / "configs")) {
+        if (e.path().extension() != ".yaml" || e.path().parent_path().filename() == "point")
+            continue;
         unsetenv("TALUS_PLUGIN_PATH");
         talus::PluginRegistry reg;
-        EXPECT_NO_THROW(talus::read_scenario(talus::yaml::load_file(e.path().string()), reg)) << e.path();
+        EXPECT_NO_THROW(talus::read_scenario(talus::yaml::load_file(e.path().string()), reg))
+            << e.path();
         ++n;
     }
     EXPECT_GE(n, 4);

@@ -13,7 +13,8 @@
 
 namespace {
 
-template <class S> void check_kernel(double lp, double second_moment) {
+template <class S>
+void check_kernel(double lp, double second_moment) {
     std::mt19937_64 rng(7);
     std::uniform_real_distribution<double> u(2.0, 40.0);
     for (int trial = 0; trial < 2000; ++trial) {
@@ -67,8 +68,12 @@ TEST(ShapeFunctions, GimpHasAllProperties) {
     check_kernel<talus::GimpShape>(0.125, 0.0);
     check_kernel<talus::GimpShape>(0.5, 0.0);
 }
-TEST(ShapeFunctions, QuadraticBSplineHasAllProperties) { check_kernel<talus::BSpline2Shape>(0.0, 0.25); }
-TEST(ShapeFunctions, CubicBSplineHasAllProperties) { check_kernel<talus::BSpline3Shape>(0.0, 1.0 / 3.0); }
+TEST(ShapeFunctions, QuadraticBSplineHasAllProperties) {
+    check_kernel<talus::BSpline2Shape>(0.0, 0.25);
+}
+TEST(ShapeFunctions, CubicBSplineHasAllProperties) {
+    check_kernel<talus::BSpline3Shape>(0.0, 1.0 / 3.0);
+}
 
 // uGIMP is continuous with a continuous gradient: compare across the
 // breakpoints |r| = lp and 1 - lp and 1 + lp against its closed form.

@@ -12,13 +12,15 @@ using talus::test::totals;
 namespace {
 
 const char *kHead = "talus: 1\ndimension: 2\n"
-                    "materials:\n  m: {model: linear_elastic, density: 1000, youngs_modulus: 1.0e6, poisson_ratio: 0.3}\n";
+                    "materials:\n  m: {model: linear_elastic, density: 1000, youngs_modulus: "
+                    "1.0e6, poisson_ratio: 0.3}\n";
 
-std::string block(const std::string &extra, const std::string &box = "{min: [0.2, 0.0], max: [0.6, 0.2]}",
+std::string block(const std::string &extra,
+                  const std::string &box = "{min: [0.2, 0.0], max: [0.6, 0.2]}",
                   const std::string &grid = "{origin: [0, 0], size: [4, 1], cell: 0.05}") {
     return std::string(kHead) + "grid: " + grid + "\n" +
-           "groups:\n  b: {material: m, particles_per_cell: 2, shape: {box: " + box + "}}\n" + extra +
-           "time: {end: 10.0}\n";
+           "groups:\n  b: {material: m, particles_per_cell: 2, shape: {box: " + box + "}}\n" +
+           extra + "time: {end: 10.0}\n";
 }
 
 double mean_v(const talus::Simulation &sim, int d) {
@@ -33,7 +35,8 @@ double mean_v(const talus::Simulation &sim, int d) {
 TEST(BoundaryConditions, SlipFloorKeepsTangentialVelocity) {
     auto s = sim_from_text(block("boundaries: {y-: slip}\ngravity: [0, -9.81]\n"));
     for (auto &set : s->sim->sets())
-        for (std::size_t p = 0; p < set.n; ++p) set.v[0][p] = 1.0;
+        for (std::size_t p = 0; p < set.n; ++p)
+            set.v[0][p] = 1.0;
     advance(*s->sim, 0.5);
     EXPECT_NEAR(mean_v(*s->sim, 0), 1.0, 1e-12);
     // It rests on the floor, bouncing elastically: static compression
@@ -48,9 +51,11 @@ TEST(BoundaryConditions, SlipFloorKeepsTangentialVelocity) {
 // velocity follows the closed form to a few percent of v0; 5 % is the bound.
 TEST(BoundaryConditions, CoulombFrictionDeceleratesAtMuG) {
     const double mu = 0.3, g = 9.81, v0 = 1.0;
-    auto s = sim_from_text(block(fmt::format("boundaries: {{y-: {{friction: {}}}}}\ngravity: [0, -{}]\n", mu, g)));
+    auto s = sim_from_text(
+        block(fmt::format("boundaries: {{y-: {{friction: {}}}}}\ngravity: [0, -{}]\n", mu, g)));
     for (auto &set : s->sim->sets())
-        for (std::size_t p = 0; p < set.n; ++p) set.v[0][p] = v0;
+        for (std::size_t p = 0; p < set.n; ++p)
+            set.v[0][p] = v0;
     for (double t : {0.1, 0.2, 0.3}) {
         advance(*s->sim, t);
         EXPECT_NEAR(mean_v(*s->sim, 0), v0 - mu * g * t, 0.05 * v0) << "t = " << t;
@@ -68,14 +73,16 @@ TEST(BoundaryConditions, FixedFaceHoldsItsNodes) {
     EXPECT_NEAR(mean_v(*s->sim, 1), 0.0, 0.05);
     double lowest = 1e9;
     for (const auto &set : s->sim->sets())
-        for (std::size_t p = 0; p < set.n; ++p) lowest = std::min(lowest, set.x[1][p]);
+        for (std::size_t p = 0; p < set.n; ++p)
+            lowest = std::min(lowest, set.x[1][p]);
     EXPECT_GT(lowest, 0.0);
 }
 
 // Prescribed nodal velocity on every node the block touches: the block moves
 // rigidly with it, v = 0.5 t (a ramp), exactly.
 TEST(BoundaryConditions, PrescribedNodalVelocityDrivesTheBlock) {
-    auto s = sim_from_text(block("nodal_velocities:\n  - {box: {min: [0, 0], max: [4, 1]}, velocity: {x: [[0, 0], [1, 0.5]]}}\n",
+    auto s = sim_from_text(block("nodal_velocities:\n  - {box: {min: [0, 0], max: [4, 1]}, "
+                                 "velocity: {x: [[0, 0], [1, 0.5]]}}\n",
                                  "{min: [1.0, 0.4], max: [1.4, 0.6]}"));
     advance(*s->sim, 0.4);
     for (const auto &set : s->sim->sets())
@@ -88,8 +95,9 @@ TEST(BoundaryConditions, PrescribedNodalVelocityDrivesTheBlock) {
 // A particle velocity fixity holds the group's velocity and moves it by the
 // integral of the prescribed function (trapezoidal, exact for linear).
 TEST(BoundaryConditions, ParticleVelocityFixity) {
-    auto s = sim_from_text(block("particle_velocities:\n  - {group: b, velocity: {x: [[0, 0], [1, 1.0]], y: 0.25}}\n",
-                                 "{min: [1.0, 0.4], max: [1.4, 0.6]}"));
+    auto s = sim_from_text(
+        block("particle_velocities:\n  - {group: b, velocity: {x: [[0, 0], [1, 1.0]], y: 0.25}}\n",
+              "{min: [1.0, 0.4], max: [1.4, 0.6]}"));
     advance(*s->sim, 0.5);
     for (const auto &set : s->sim->sets())
         for (std::size_t p = 0; p < set.n; ++p) {
@@ -104,8 +112,9 @@ TEST(BoundaryConditions, ParticleVelocityFixity) {
 // 2D. Uniform loads keep the block stress-free, so these are exact.
 TEST(Loads, PointLoadAndTractionAccelerateAsNewtonSays) {
     for (const char *kind : {"point", "traction"}) {
-        auto s = sim_from_text(block(fmt::format("loads:\n  - {{group: b, {}: [2.0, [[0, 0], [1, -1.0]]]}}\n", kind),
-                                     "{min: [1.0, 0.4], max: [1.4, 0.6]}"));
+        auto s = sim_from_text(
+            block(fmt::format("loads:\n  - {{group: b, {}: [2.0, [[0, 0], [1, -1.0]]]}}\n", kind),
+                  "{min: [1.0, 0.4], max: [1.4, 0.6]}"));
         const auto &set0 = s->sim->sets()[0];
         const double m = set0.mass[0], V0 = set0.vol0[0];
         const double scale = std::string(kind) == "traction" ? std::sqrt(V0) : 1.0;
@@ -127,7 +136,8 @@ TEST(Loads, PointLoadAndTractionAccelerateAsNewtonSays) {
 // Gravity is sampled at step starts (forward Euler on a linear ramp), which
 // undershoots by g dt t / (2T): 2 % at the test's resolution.
 TEST(Loads, GravityRamp) {
-    auto s = sim_from_text(block("gravity: {value: [0, -10], ramp: 1.0}\n", "{min: [1.0, 0.4], max: [1.4, 0.6]}",
+    auto s = sim_from_text(block("gravity: {value: [0, -10], ramp: 1.0}\n",
+                                 "{min: [1.0, 0.4], max: [1.4, 0.6]}",
                                  "{origin: [0, -10], size: [4, 11], cell: 0.05}"));
     advance(*s->sim, 0.5);
     EXPECT_NEAR(mean_v(*s->sim, 1), -10.0 * 0.25 / 2.0, 0.02 * 1.25);
@@ -140,7 +150,8 @@ TEST(Loads, GravityRamp) {
 TEST(InitialState, GeostaticStress) {
     auto s = sim_from_text(std::string(kHead) +
                            "grid: {origin: [0, 0], size: [2, 2], cell: 0.1}\n"
-                           "groups:\n  soil: {material: m, particles_per_cell: 2, shape: {box: {min: [0, 0], max: [2, 1.5]}},\n"
+                           "groups:\n  soil: {material: m, particles_per_cell: 2, shape: {box: "
+                           "{min: [0, 0], max: [2, 1.5]}},\n"
                            "         initial_stress: {geostatic: {k0: 0.4}}}\n"
                            "boundaries: {y-: fixed}\ngravity: [0, -9.81]\ntime: {end: 1}\n");
     const auto &set = s->sim->sets()[0];
@@ -155,16 +166,20 @@ TEST(InitialState, GeostaticStress) {
 
 // Leaving the grid: "stop" names the particles; "remove" deletes and counts.
 TEST(LeavingGrid, StopNamesTheParticlesRemoveCountsThem) {
-    const std::string base = std::string(kHead) + "grid: {origin: [0, 0], size: [1, 1], cell: 0.1}\n"
-                                                  "groups:\n  fast: {material: m, particles_per_cell: 1, velocity: [5, 0],\n"
-                                                  "         shape: {box: {min: [0.7, 0.4], max: [0.9, 0.6]}}}\n"
-                                                  "time: {end: 1}\n";
+    const std::string base =
+        std::string(kHead) +
+        "grid: {origin: [0, 0], size: [1, 1], cell: 0.1}\n"
+        "groups:\n  fast: {material: m, particles_per_cell: 1, velocity: [5, 0],\n"
+        "         shape: {box: {min: [0.7, 0.4], max: [0.9, 0.6]}}}\n"
+        "time: {end: 1}\n";
     auto stop = sim_from_text(base);
     try {
         advance(*stop->sim, 0.2);
         FAIL() << "expected the particles to leave";
     } catch (const talus::Error &e) {
-        EXPECT_TRUE(contains(e.what(), "particle(s) left the grid (policy solver.leaving_grid: stop")) << e.what();
+        EXPECT_TRUE(
+            contains(e.what(), "particle(s) left the grid (policy solver.leaving_grid: stop"))
+            << e.what();
         EXPECT_TRUE(contains(e.what(), "of group 'fast' at (1.")) << e.what();
     }
     auto rm = sim_from_text(base + "solver: {leaving_grid: remove}\n");
@@ -176,17 +191,20 @@ TEST(LeavingGrid, StopNamesTheParticlesRemoveCountsThem) {
 // A material that fails stops the run with plugin, group, particle and step.
 TEST(MaterialFailure, NamesPluginGroupParticleAndStep) {
     try {
-        auto s = sim_from_text("talus: 1\ndimension: 2\nplugins: [fixture_throws_sdk]\n"
-                               "grid: {origin: [0, 0], size: [1, 1], cell: 0.1}\n"
-                               "materials:\n  bad: {model: thrower, density: 1000, stiffness: 1.0e6}\n"
-                               "groups:\n  lump: {material: bad, particles_per_cell: 1, shape: {box: {min: [0.4, 0.4], max: [0.6, 0.6]}}}\n"
-                               "time: {end: 1}\n",
-                               {talus::test::fixture_dir()});
+        auto s =
+            sim_from_text("talus: 1\ndimension: 2\nplugins: [fixture_throws_sdk]\n"
+                          "grid: {origin: [0, 0], size: [1, 1], cell: 0.1}\n"
+                          "materials:\n  bad: {model: thrower, density: 1000, stiffness: 1.0e6}\n"
+                          "groups:\n  lump: {material: bad, particles_per_cell: 1, shape: {box: "
+                          "{min: [0.4, 0.4], max: [0.6, 0.6]}}}\n"
+                          "time: {end: 1}\n",
+                          {talus::test::fixture_dir()});
         FAIL() << "expected a failure";
     } catch (const talus::Error &e) {
         const std::string m = e.what();
         EXPECT_TRUE(contains(m, "material 'bad' (model 'thrower',")) << m;
-        EXPECT_TRUE(contains(m, "fixture_throws_sdk.so) failed at particle 0 of group 'lump'")) << m;
+        EXPECT_TRUE(contains(m, "fixture_throws_sdk.so) failed at particle 0 of group 'lump'"))
+            << m;
         EXPECT_TRUE(contains(m, "step 1")) << m;
         EXPECT_TRUE(contains(m, "the model gave up on purpose")) << m;
     }
@@ -198,15 +216,16 @@ TEST(MaterialFailure, NamesPluginGroupParticleAndStep) {
 // law is exact up to round-off: 1e-9 of the stress).
 TEST(MaterialFailure, CutStepIsSubSteppedAndExact) {
     auto run = [](const std::string &model, const std::string &plugins) {
-        auto s = sim_from_text("talus: 1\ndimension: 2\n" + plugins +
-                                   "grid: {origin: [0, 0], size: [1, 1], cell: 0.05}\n"
-                                   "materials:\n  m: {model: " +
-                                   model +
-                                   ", density: 1000, youngs_modulus: 1.0e6, poisson_ratio: 0.3}\n"
-                                   "groups:\n  b: {material: m, particles_per_cell: 2, velocity: [0, -3],\n"
-                                   "      shape: {box: {min: [0.3, 0.05], max: [0.7, 0.3]}}}\n"
-                                   "boundaries: {y-: fixed}\nsolver: {dt: 1.0e-4}\ntime: {end: 1}\n",
-                               {talus::test::fixture_dir()});
+        auto s = sim_from_text(
+            "talus: 1\ndimension: 2\n" + plugins +
+                "grid: {origin: [0, 0], size: [1, 1], cell: 0.05}\n"
+                "materials:\n  m: {model: " +
+                model +
+                ", density: 1000, youngs_modulus: 1.0e6, poisson_ratio: 0.3}\n"
+                "groups:\n  b: {material: m, particles_per_cell: 2, velocity: [0, -3],\n"
+                "      shape: {box: {min: [0.3, 0.05], max: [0.7, 0.3]}}}\n"
+                "boundaries: {y-: fixed}\nsolver: {dt: 1.0e-4}\ntime: {end: 1}\n",
+            {talus::test::fixture_dir()});
         advance(*s->sim, 0.01);
         return s;
     };

@@ -14,8 +14,10 @@ std::string free_fall(int dim, const std::string &position_update, const std::st
     const bool d3 = dim == 3;
     return fmt::format("talus: 1\ndimension: {}\n"
                        "grid: {{origin: {}, size: {}, cell: 0.1}}\n"
-                       "materials:\n  m: {{model: linear_elastic, density: 1000, youngs_modulus: 1.0e6, poisson_ratio: 0.25}}\n"
-                       "groups:\n  block: {{material: m, particles_per_cell: 2, shape: {{box: {{min: {}, max: {}}}}}}}\n"
+                       "materials:\n  m: {{model: linear_elastic, density: 1000, youngs_modulus: "
+                       "1.0e6, poisson_ratio: 0.25}}\n"
+                       "groups:\n  block: {{material: m, particles_per_cell: 2, shape: {{box: "
+                       "{{min: {}, max: {}}}}}}}\n"
                        "gravity: {}\n"
                        "solver: {{shape: {}, position_update: {}, dt: 0.002}}\n"
                        "time: {{end: 1.0}}\n",
@@ -49,14 +51,18 @@ TEST(Conservation, FreeFallGainsExactlyGT) {
                 advance(*s->sim, t);
                 ASSERT_EQ(s->sim->steps(), n);
                 const std::size_t vert = static_cast<std::size_t>(dim - 1);
-                const double expect_u = std::string(update) == "second_order" ? 0.5 * g * t * t
-                                                                              : g * dt * dt * n * (n + 1) / 2.0;
+                const double expect_u = std::string(update) == "second_order"
+                                            ? 0.5 * g * t * t
+                                            : g * dt * dt * n * (n + 1) / 2.0;
                 double worst_v = 0, worst_u = 0, worst_s = 0;
                 for (const auto &set : s->sim->sets())
                     for (std::size_t p = 0; p < set.n; ++p) {
                         worst_v = std::max(worst_v, std::abs(set.v[vert][p] - g * t));
-                        worst_u = std::max(worst_u, std::abs(set.x[vert][p] - set.x0[vert][p] - expect_u));
-                        for (int c = 0; c < 6; ++c) worst_s = std::max(worst_s, std::abs(set.stress[6 * p + static_cast<std::size_t>(c)]));
+                        worst_u = std::max(worst_u,
+                                           std::abs(set.x[vert][p] - set.x0[vert][p] - expect_u));
+                        for (int c = 0; c < 6; ++c)
+                            worst_s = std::max(
+                                worst_s, std::abs(set.stress[6 * p + static_cast<std::size_t>(c)]));
                     }
                 const std::string what = fmt::format("{}D {} {}", dim, shape, update);
                 EXPECT_LT(worst_v, 1e-12 * std::abs(g * t)) << what;
@@ -74,17 +80,21 @@ TEST(Conservation, FreeFallGainsExactlyGT) {
 TEST(Conservation, MassExactlyAndMomentumWithoutBoundaries3D) {
     auto s = sim_from_text(
         "talus: 1\ndimension: 3\ngrid: {origin: [0, 0, 0], size: [2.0, 1.0, 1.0], cell: 0.1}\n"
-        "materials:\n  m: {model: linear_elastic, density: 1000, youngs_modulus: 1.0e5, poisson_ratio: 0.3}\n"
+        "materials:\n  m: {model: linear_elastic, density: 1000, youngs_modulus: 1.0e5, "
+        "poisson_ratio: 0.3}\n"
         "groups:\n"
-        "  a: {material: m, particles_per_cell: 2, velocity: [1.0, 0.2, 0], shape: {box: {min: [0.3, 0.3, 0.3], max: [0.9, 0.7, 0.7]}}}\n"
-        "  b: {material: m, particles_per_cell: 2, velocity: [-0.5, 0, 0.1], shape: {sphere: {center: [1.3, 0.5, 0.5], radius: 0.25}}}\n"
+        "  a: {material: m, particles_per_cell: 2, velocity: [1.0, 0.2, 0], shape: {box: {min: "
+        "[0.3, 0.3, 0.3], max: [0.9, 0.7, 0.7]}}}\n"
+        "  b: {material: m, particles_per_cell: 2, velocity: [-0.5, 0, 0.1], shape: {sphere: "
+        "{center: [1.3, 0.5, 0.5], radius: 0.25}}}\n"
         "solver: {transfer: apic, shape: bspline3, cfl: 0.4}\n"
         "time: {end: 1.0}\n");
     const auto t0 = totals(*s->sim);
     double worst_p = 0, worst_m = 0;
     advance(*s->sim, 0.4, [&] {
         const auto t = totals(*s->sim);
-        for (int d = 0; d < 3; ++d) worst_p = std::max(worst_p, std::abs(t.p[d] - t0.p[d]));
+        for (int d = 0; d < 3; ++d)
+            worst_p = std::max(worst_p, std::abs(t.p[d] - t0.p[d]));
         worst_m = std::max(worst_m, std::abs(s->sim->grid_mass() - t0.mass) / t0.mass);
         EXPECT_EQ(t.mass, t0.mass);
     });
@@ -105,11 +115,14 @@ TEST(Conservation, AffineFieldReproducedExactlyByApic) {
             const bool d3 = dim == 3;
             auto s = sim_from_text(fmt::format(
                 "talus: 1\ndimension: {}\ngrid: {{origin: {}, size: {}, cell: 0.1}}\n"
-                "materials:\n  m: {{model: linear_elastic, density: 1000, youngs_modulus: 1.0e5, poisson_ratio: 0.3}}\n"
-                "groups:\n  g: {{material: m, particles_per_cell: 2, shape: {{box: {{min: {}, max: {}}}}}}}\n"
+                "materials:\n  m: {{model: linear_elastic, density: 1000, youngs_modulus: 1.0e5, "
+                "poisson_ratio: 0.3}}\n"
+                "groups:\n  g: {{material: m, particles_per_cell: 2, shape: {{box: {{min: {}, max: "
+                "{}}}}}}}\n"
                 "solver: {{transfer: apic, shape: {}, dt: 1.0e-6}}\ntime: {{end: 1.0}}\n",
-                dim, d3 ? "[0, 0, 0]" : "[0, 0]", d3 ? "[1, 1, 1]" : "[1, 1]", d3 ? "[0.2, 0.3, 0.2]" : "[0.2, 0.3]",
-                d3 ? "[0.7, 0.8, 0.6]" : "[0.7, 0.8]", shape));
+                dim, d3 ? "[0, 0, 0]" : "[0, 0]", d3 ? "[1, 1, 1]" : "[1, 1]",
+                d3 ? "[0.2, 0.3, 0.2]" : "[0.2, 0.3]", d3 ? "[0.7, 0.8, 0.6]" : "[0.7, 0.8]",
+                shape));
             const double A[3][3] = {{0.3, -0.7, 0.2}, {0.5, 0.1, -0.4}, {-0.2, 0.6, 0.25}};
             const double v0[3] = {1.0, -2.0, 0.5};
             for (auto &set : s->sim->sets())
@@ -127,7 +140,8 @@ TEST(Conservation, AffineFieldReproducedExactlyByApic) {
             for (auto &set : s->sim->sets()) {
                 std::vector<double> b;
                 for (std::size_t p = 0; p < set.n; ++p)
-                    for (int a = 0; a < dim; ++a) b.push_back(set.v[static_cast<std::size_t>(a)][p]);
+                    for (int a = 0; a < dim; ++a)
+                        b.push_back(set.v[static_cast<std::size_t>(a)][p]);
                 before.push_back(b);
             }
             s->sim->step(1.0e-6);
@@ -136,10 +150,15 @@ TEST(Conservation, AffineFieldReproducedExactlyByApic) {
                 const auto &set = s->sim->sets()[si];
                 for (std::size_t p = 0; p < set.n; ++p)
                     for (int a = 0; a < dim; ++a) {
-                        worst_v = std::max(worst_v, std::abs(set.v[static_cast<std::size_t>(a)][p] -
-                                                             before[si][p * static_cast<std::size_t>(dim) + static_cast<std::size_t>(a)]));
+                        worst_v = std::max(worst_v,
+                                           std::abs(set.v[static_cast<std::size_t>(a)][p] -
+                                                    before[si][p * static_cast<std::size_t>(dim) +
+                                                               static_cast<std::size_t>(a)]));
                         for (int b = 0; b < dim; ++b)
-                            worst_c = std::max(worst_c, std::abs(set.C[9 * p + static_cast<std::size_t>(3 * a + b)] - A[a][b]));
+                            worst_c = std::max(
+                                worst_c,
+                                std::abs(set.C[9 * p + static_cast<std::size_t>(3 * a + b)] -
+                                         A[a][b]));
                     }
             }
             const std::string what = fmt::format("{}D {}", dim, shape);
@@ -153,11 +172,14 @@ TEST(Conservation, AffineFieldReproducedExactlyByApic) {
 namespace {
 // Total angular momentum about z after `steps` steps of a spinning disk.
 std::pair<double, double> spinning_disk(const std::string &transfer) {
-    auto s = sim_from_text("talus: 1\ndimension: 2\ngrid: {origin: [0, 0], size: [2, 2], cell: 0.05}\n"
-                           "materials:\n  m: {model: linear_elastic, density: 1000, youngs_modulus: 1.0e6, poisson_ratio: 0.3}\n"
-                           "groups:\n  disk: {material: m, particles_per_cell: 2, shape: {sphere: {center: [1, 1], radius: 0.4}}}\n"
-                           "solver: {transfer: " +
-                           transfer + ", shape: bspline2, cfl: 0.3}\ntime: {end: 1.0}\n");
+    auto s =
+        sim_from_text("talus: 1\ndimension: 2\ngrid: {origin: [0, 0], size: [2, 2], cell: 0.05}\n"
+                      "materials:\n  m: {model: linear_elastic, density: 1000, youngs_modulus: "
+                      "1.0e6, poisson_ratio: 0.3}\n"
+                      "groups:\n  disk: {material: m, particles_per_cell: 2, shape: {sphere: "
+                      "{center: [1, 1], radius: 0.4}}}\n"
+                      "solver: {transfer: " +
+                      transfer + ", shape: bspline2, cfl: 0.3}\ntime: {end: 1.0}\n");
     const double omega = 2.0;
     for (auto &set : s->sim->sets())
         for (std::size_t p = 0; p < set.n; ++p) {
@@ -169,7 +191,8 @@ std::pair<double, double> spinning_disk(const std::string &transfer) {
             }
         }
     const double L0 = s->sim->diagnostics().angular_momentum[2];
-    for (int k = 0; k < 200; ++k) s->sim->step(1.0);
+    for (int k = 0; k < 200; ++k)
+        s->sim->step(1.0);
     return {L0, s->sim->diagnostics().angular_momentum[2]};
 }
 } // namespace

@@ -33,7 +33,8 @@ Oscillation measure(const std::vector<double> &t, const std::vector<double> &v) 
     const std::vector<double> z = zero_crossings(t, v);
     Oscillation o;
     if (z.size() >= 2) o.period = 2.0 * (z.back() - z.front()) / static_cast<double>(z.size() - 1);
-    for (double x : v) o.amplitude = std::max(o.amplitude, std::abs(x));
+    for (double x : v)
+        o.amplitude = std::max(o.amplitude, std::abs(x));
     return o;
 }
 
@@ -77,7 +78,7 @@ Oscillation run_bar(const std::string &scheme) {
 // period and 1 % on the amplitude of v_cm are the bounds.
 TEST(Verification, BarVibrationPeriodAndAmplitudeEveryScheme) {
     const Oscillation ref = bar_reference();
-    ASSERT_NEAR(ref.period, 10.0, 0.01);        // the file is the closed form
+    ASSERT_NEAR(ref.period, 10.0, 0.01);          // the file is the closed form
     ASSERT_NEAR(ref.amplitude, 0.2 / M_PI, 1e-7); // v_cm(0) = 0.1 * 2 / pi
     for (const char *scheme : {"musl", "usl", "usf", "usavg"}) {
         const Oscillation o = run_bar(scheme);

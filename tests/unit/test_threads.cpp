@@ -11,7 +11,8 @@
 TEST(Threads, TwoThreadsReproduceOneBitForBit) {
     const std::string yaml =
         "talus: 1\ndimension: 3\ngrid: {origin: [0, 0, 0], size: [1.6, 1.6, 1.6], cell: 0.05}\n"
-        "materials:\n  m: {model: linear_elastic, density: 1000, youngs_modulus: 1.0e6, poisson_ratio: 0.3}\n"
+        "materials:\n  m: {model: linear_elastic, density: 1000, youngs_modulus: 1.0e6, "
+        "poisson_ratio: 0.3}\n"
         "groups:\n  a: {material: m, particles_per_cell: 2, velocity: [0.5, 0, -0.3],\n"
         "      shape: {sphere: {center: [0.8, 0.8, 0.6], radius: 0.4}}}\n"
         "boundaries: {z-: {friction: 0.3}}\ngravity: [0, 0, -9.81]\n"
@@ -19,7 +20,8 @@ TEST(Threads, TwoThreadsReproduceOneBitForBit) {
     auto run = [&](int threads) {
         auto s = talus::test::sim_from_text(yaml);
         omp_set_num_threads(threads);
-        for (int k = 0; k < 40; ++k) s->sim->step(1.0); // crosses a re-sort (every 25)
+        for (int k = 0; k < 40; ++k)
+            s->sim->step(1.0); // crosses a re-sort (every 25)
         return s;
     };
     const int before = omp_get_max_threads();
