@@ -16,6 +16,7 @@
 #include <mutex>
 #include <numeric>
 #include <optional>
+#include <tuple>
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -29,7 +30,7 @@ namespace {
 // Every per-particle array with its number of values per particle.
 template <class PS, class F>
 void for_each_array(PS &s, F &&f) {
-    for (int d = 0; d < 3; ++d) {
+    for (int d = 0; d < s.dim; ++d) {
         f(s.x[static_cast<std::size_t>(d)], 1);
         f(s.x0[static_cast<std::size_t>(d)], 1);
         f(s.v[static_cast<std::size_t>(d)], 1);
@@ -46,10 +47,10 @@ void for_each_array(PS &s, F &&f) {
     f(s.state, s.state_size);
     f(s.de, 6);
     f(s.c, 1);
-    f(s.L, 9);
-    f(s.C, 9);
+    if (s.has_L) f(s.L, 9);
+    if (s.has_C) f(s.C, 9);
     f(s.work, 1);
-    f(s.divv, 1);
+    if (s.has_divv) f(s.divv, 1);
 }
 } // namespace
 
@@ -107,6 +108,9 @@ struct Simulation::Impl {
 
     std::vector<double> cell_div, cell_vol; // cell-averaged dilation sums
     std::vector<std::size_t> slab_end_tmp;  // bin_particles scratch
+    std::tuple<std::vector<double>, std::vector<std::int64_t>, std::vector<std::int32_t>,
+               std::vector<std::uint32_t>>
+        sort_buffers;
 
     // Per-thread scratch for the plugin's cut-step sub-stepping.
     struct Scratch {
@@ -291,7 +295,7 @@ inline bool kinematics_point(ParticleSet &s, std::size_t p, const double *Lg, do
     de[3] = dt * (L[1] + L[3]);
     de[4] = dt * (L[5] + L[7]);
     de[5] = dt * (L[2] + L[6]);
-    s.divv[p] = L[0] + L[4] + L[8];
+    if (s.has_divv) s.divv[p] = L[0] + L[4] + L[8];
     if (!s.finite_strain) hughes_winget(L, dt, &s.stress[6 * p]);
     if (!defer_work) s.work[p] += 0.5 * J * s.vol0[p] * stress_work(&s.stress[6 * p], de);
     return true;
@@ -746,30 +750,22 @@ void Simulation::Impl::sort_particles() {
         for (std::size_t p = 0; p < s.n && sorted; ++p)
             sorted = perm[p] == p;
         if (sorted) continue;
-        ParticleSet t;
-        t.state_size = s.state_size;
-        t.resize(s.n);
-        auto gather = [&](auto &dst, const auto &src, std::size_t stride) {
+        // Permute every array through one reusable buffer: no second copy
+        // of the particles (which would fault in fresh pages every sort).
+        auto permute = [&](auto &a, std::size_t stride) {
+            using T = typename std::decay_t<decltype(a)>::value_type;
+            auto &buf = std::get<std::vector<T>>(sort_buffers);
+            buf.resize(s.n * stride);
             for (std::size_t p = 0; p < s.n; ++p)
-                std::copy_n(src.begin() + static_cast<std::ptrdiff_t>(perm[p] * stride), stride,
-                            dst.begin() + static_cast<std::ptrdiff_t>(p * stride));
+                std::copy_n(a.begin() + static_cast<std::ptrdiff_t>(perm[p] * stride), stride,
+                            buf.begin() + static_cast<std::ptrdiff_t>(p * stride));
+            std::copy(buf.begin(), buf.end(), a.begin());
         };
-        // Walk both sets' arrays in the same order.
-        std::vector<std::pair<std::vector<double> *, std::size_t>> dst, src;
-        for_each_array(t, [&](auto &a, std::size_t st) { dst.emplace_back(&a, st); });
-        for_each_array(s, [&](auto &a, std::size_t st) { src.emplace_back(&a, st); });
-        for (std::size_t k = 0; k < dst.size(); ++k)
-            gather(*dst[k].first, *src[k].first, dst[k].second);
-        gather(t.id, s.id, 1);
-        gather(t.group, s.group, 1);
-        gather(t.load_mask, s.load_mask, 1);
-        gather(t.fix_mask, s.fix_mask, 1);
-        for (std::size_t k = 0; k < dst.size(); ++k)
-            src[k].first->swap(*dst[k].first);
-        s.id.swap(t.id);
-        s.group.swap(t.group);
-        s.load_mask.swap(t.load_mask);
-        s.fix_mask.swap(t.fix_mask);
+        for_each_array(s, permute);
+        permute(s.id, 1);
+        permute(s.group, 1);
+        permute(s.load_mask, 1);
+        permute(s.fix_mask, 1);
     }
     for (auto &sl : slab_index)
         sl.clear(); // recomputed by bin_particles
@@ -1139,6 +1135,10 @@ Simulation::Simulation(Scenario &scenario, SolverOptions options)
             s.finite_strain = m.spec.model->finite_strain();
             s.state_size = m.spec.model->state_size();
             s.rho0 = m.spec.density;
+            s.dim = sc_.dim;
+            s.has_C = sc_.solver.transfer != Transfer::flip;
+            s.has_divv = sc_.solver.cell_averaged_dilation;
+            s.has_L = !(sc_.solver.scheme == Scheme::usl && !sc_.solver.cell_averaged_dilation);
             sets_.push_back(std::move(s));
         }
         ParticleSet &s = sets_[static_cast<std::size_t>(set_of[gs.material])];
@@ -1185,7 +1185,7 @@ Simulation::Simulation(Scenario &scenario, SolverOptions options)
                     s.resize(p + 1);
                     s.id[p] = next_id++;
                     s.group[p] = static_cast<std::int32_t>(gi);
-                    for (int d = 0; d < 3; ++d) {
+                    for (int d = 0; d < D; ++d) {
                         const std::size_t dd = static_cast<std::size_t>(d);
                         s.x[dd][p] = s.x0[dd][p] = x[d];
                         s.v[dd][p] = gs.velocity[dd];
@@ -1214,10 +1214,10 @@ Simulation::Simulation(Scenario &scenario, SolverOptions options)
                     std::copy(q_init.begin(), q_init.end(),
                               s.state.begin() + static_cast<std::ptrdiff_t>(p * s.state_size));
                     std::fill_n(&s.de[6 * p], 6, 0.0);
-                    std::fill_n(&s.L[9 * p], 9, 0.0);
-                    std::fill_n(&s.C[9 * p], 9, 0.0);
+                    if (s.has_L) std::fill_n(&s.L[9 * p], 9, 0.0);
+                    if (s.has_C) std::fill_n(&s.C[9 * p], 9, 0.0);
                     s.work[p] = 0.0;
-                    s.divv[p] = 0.0;
+                    if (s.has_divv) s.divv[p] = 0.0;
                     std::uint32_t lm = 0, fm = 0;
                     for (std::size_t l = 0; l < sc_.loads.size(); ++l) {
                         const Load &ld = sc_.loads[l];
@@ -1436,7 +1436,8 @@ Diagnostics Simulation::diagnostics() const {
                 dg.momentum[static_cast<std::size_t>(d)] += m * v[d];
             dg.kinetic_energy += 0.5 * m * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
             dg.strain_energy += s.work[p];
-            const double *C = &s.C[9 * p];
+            static const double no_affine[9] = {};
+            const double *C = s.has_C ? &s.C[9 * p] : no_affine;
             dg.angular_momentum[2] += m * (x[0] * v[1] - x[1] * v[0]) + m * Dcoef * (C[3] - C[1]);
             if (D == 3) {
                 dg.angular_momentum[0] +=

@@ -84,7 +84,7 @@ inline Totals totals(const Simulation &sim) {
     for (const ParticleSet &s : sim.sets())
         for (std::size_t k = 0; k < s.n; ++k) {
             t.mass += s.mass[k];
-            for (int d = 0; d < 3; ++d) {
+            for (int d = 0; d < s.dim; ++d) {
                 t.p[d] += s.mass[k] * s.v[static_cast<std::size_t>(d)][k];
                 t.ke += 0.5 * s.mass[k] * s.v[static_cast<std::size_t>(d)][k] *
                         s.v[static_cast<std::size_t>(d)][k];
