@@ -182,6 +182,11 @@ struct Simulation::Impl {
     void remove_or_report_leaving();
     std::vector<std::vector<std::int32_t>> slab_index; // per set, per particle
     double max_speed = -1.0;                           // < 0: not known yet
+    // Particles whose cell index is below their predecessor's in memory
+    // (counted by finish_step): a measure of how far the order has decayed.
+    double out_of_order = 0.0;
+    bool slabs_changed = true;                       // any particle changed slab in the last step
+    std::vector<std::vector<std::uint32_t>> cell_of; // per set, per particle
     // Set when G2P already did the kinematics (USL without cell-averaged
     // dilation): one pass over the particles less. An inverted point found
     // there is remembered here and reported by kinematics_and_update.
@@ -207,7 +212,7 @@ namespace {
 // Cayley transform has the closed form Q = I + 2 (A + A^2) / (1 + |a|^2),
 // a the axial vector of A; Q is exactly orthogonal, so the rotated stress
 // keeps its invariants.
-inline void hughes_winget(const double *L, double dt, double *sig) {
+__attribute__((always_inline)) inline void hughes_winget(const double *L, double dt, double *sig) {
     const double a1 = 0.25 * dt * (L[7] - L[5]); // A_zy
     const double a2 = 0.25 * dt * (L[2] - L[6]); // A_xz
     const double a3 = 0.25 * dt * (L[3] - L[1]); // A_yx
@@ -708,6 +713,11 @@ void Simulation::Impl::setup_grid() {
 // Groups the particles of every set by slab (a counting sort of indices).
 void Simulation::Impl::bin_particles() {
     auto &sets = sim.sets_;
+    // Unchanged slabs give the same order: nothing to redo.
+    bool same = !slabs_changed && order.size() == sets.size();
+    for (std::size_t si = 0; same && si < sets.size(); ++si)
+        same = order[si].size() == sets[si].n && slab_index[si].size() == sets[si].n;
+    if (same) return;
     order.resize(sets.size());
     slab_begin.resize(sets.size());
     slab_index.resize(sets.size());
@@ -769,9 +779,21 @@ void Simulation::Impl::sort_particles() {
     }
     for (auto &sl : slab_index)
         sl.clear(); // recomputed by bin_particles
+    slabs_changed = true;
 }
 
-void Simulation::Impl::reset_grid() { std::fill(acc.begin(), acc.end(), 0.0); }
+void Simulation::Impl::reset_grid() {
+    // Parallel: on a large grid this is tens of megabytes every step.
+    const std::ptrdiff_t chunks = 64;
+    const std::size_t len = acc.size();
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t c = 0; c < chunks; ++c) {
+        const std::size_t b = len * static_cast<std::size_t>(c) / chunks;
+        const std::size_t e = len * static_cast<std::size_t>(c + 1) / chunks;
+        std::fill(acc.begin() + static_cast<std::ptrdiff_t>(b),
+                  acc.begin() + static_cast<std::ptrdiff_t>(e), 0.0);
+    }
+}
 
 // Boundary conditions on a nodal velocity field (seed 004 step 2.4; Coulomb
 // friction as a velocity projection: the normal approach is stopped and the
@@ -820,19 +842,10 @@ void Simulation::Impl::grid_velocities(double dt, double t, bool update) {
     const std::ptrdiff_t N = static_cast<std::ptrdiff_t>(n_nodes);
     double *a = acc.data(), *v = vel.data();
     const int D = dim;
-    if (!update) {
-#pragma omp parallel for schedule(static)
-        for (std::ptrdiff_t ii = 0; ii < N; ++ii) {
-            const std::size_t i = static_cast<std::size_t>(ii);
-            const double m = a[kRec * i + kM];
-            const double inv = m > 0.0 ? 1.0 / m : 0.0;
-            for (int d = 0; d < D; ++d)
-                v[kRec * i + kV0 + static_cast<std::size_t>(d)] =
-                    a[kRec * i + kP + static_cast<std::size_t>(d)] * inv;
-        }
-        apply_bc(v, kV0, t);
-        return;
-    }
+    // v = p / m everywhere and, when updating, v~ = v + dt f / m in the same
+    // pass; the constrained nodes are then redone in order (conditions on v,
+    // v~ from the constrained v, conditions on v~), which matters for
+    // friction, where v~'s approach speed depends on the constrained v.
 #pragma omp parallel for schedule(static)
     for (std::ptrdiff_t ii = 0; ii < N; ++ii) {
         const std::size_t i = static_cast<std::size_t>(ii);
@@ -840,9 +853,28 @@ void Simulation::Impl::grid_velocities(double dt, double t, bool update) {
         const double inv = m > 0.0 ? 1.0 / m : 0.0;
         for (int d = 0; d < D; ++d) {
             const std::size_t dd = static_cast<std::size_t>(d);
-            v[kRec * i + kV1 + dd] = v[kRec * i + kV0 + dd] + dt * a[kRec * i + kF + dd] * inv;
+            const double v0 = a[kRec * i + kP + dd] * inv;
+            v[kRec * i + kV0 + dd] = v0;
+            if (update) v[kRec * i + kV1 + dd] = v0 + dt * a[kRec * i + kF + dd] * inv;
         }
     }
+    apply_bc(v, kV0, t);
+    if (!update) return;
+    auto redo = [&](std::uint32_t i) {
+        const double m = a[kRec * i + kM];
+        const double inv = m > 0.0 ? 1.0 / m : 0.0;
+        for (int d = 0; d < D; ++d) {
+            const std::size_t dd = static_cast<std::size_t>(d);
+            v[kRec * i + kV1 + dd] = v[kRec * i + kV0 + dd] + dt * a[kRec * i + kF + dd] * inv;
+        }
+    };
+    for (int f = 0; f < 2 * D; ++f)
+        if (sim.sc_.faces[static_cast<std::size_t>(f)].type != FaceType::free)
+            for (std::uint32_t i : face_nodes[static_cast<std::size_t>(f)])
+                redo(i);
+    for (const auto &nodes_k : prescribed_nodes)
+        for (std::uint32_t i : nodes_k)
+            redo(i);
     apply_bc(v, kV1, t + dt);
 }
 
@@ -1030,16 +1062,22 @@ void Simulation::Impl::kinematics_and_update(double dt, double t) {
 
 void Simulation::Impl::finish_step() {
     const Scenario &sc = sim.sc_;
-    double speed = 0.0;
-    long outside = 0;
+    double speed = 0.0, disorder = 0.0;
+    long outside = 0, moved = 0;
     slab_index.resize(sim.sets_.size());
     for (std::size_t si = 0; si < sim.sets_.size(); ++si) {
         ParticleSet &s = sim.sets_[si];
         auto &slab = slab_index[si];
-        slab.resize(s.n);
+        if (slab.size() != s.n) {
+            slab.assign(s.n, -1);
+            ++moved;
+        }
+        cell_of.resize(sim.sets_.size());
+        auto &cell = cell_of[si];
+        cell.resize(s.n);
         const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(s.n);
         const int D = dim;
-#pragma omp parallel for schedule(static) reduction(max : speed) reduction(+ : outside)
+#pragma omp parallel for schedule(static) reduction(max : speed) reduction(+ : outside, moved)
         for (std::ptrdiff_t pp = 0; pp < n; ++pp) {
             const std::size_t p = static_cast<std::size_t>(pp);
             bool in = true;
@@ -1053,10 +1091,32 @@ void Simulation::Impl::finish_step() {
             }
             outside += in ? 0 : 1;
             speed = std::max(speed, s.c[p] + std::sqrt(v2));
-            slab[p] = slab_of(s, p);
+            // The cell, and from it the slab, with one floor per axis.
+            std::size_t ci = 0, stride = 1;
+            int sl = 0;
+            for (int d = 0; d < D; ++d) {
+                const std::size_t dd = static_cast<std::size_t>(d);
+                const int c =
+                    std::clamp(static_cast<int>(fast_floor((s.x[dd][p] - origin[dd]) * inv_h)), 0,
+                               cells[dd] - 1);
+                ci += static_cast<std::size_t>(c) * stride;
+                stride *= static_cast<std::size_t>(cells[dd]);
+                if (d == slab_axis) sl = std::min(c / slab_width, n_slabs - 1);
+            }
+            moved += sl != slab[p] ? 1 : 0;
+            slab[p] = sl;
+            cell[p] = static_cast<std::uint32_t>(ci);
         }
+        long descents = 0;
+#pragma omp parallel for schedule(static) reduction(+ : descents)
+        for (std::ptrdiff_t pp = 1; pp < n; ++pp)
+            descents +=
+                cell[static_cast<std::size_t>(pp)] < cell[static_cast<std::size_t>(pp) - 1] ? 1 : 0;
+        disorder += static_cast<double>(descents);
     }
     max_speed = speed;
+    out_of_order = disorder;
+    slabs_changed = moved > 0;
     if (outside > 0) remove_or_report_leaving();
 }
 
@@ -1091,6 +1151,7 @@ void Simulation::Impl::remove_or_report_leaving() {
     }
     for (auto &sl : slab_index)
         sl.clear(); // indices moved: recompute
+    slabs_changed = true;
     if (outside == 0) return;
     if (sc.solver.leave == LeavePolicy::remove) {
         sim.removed_ += static_cast<long>(outside);
@@ -1309,7 +1370,9 @@ void Simulation::step(double max_dt) {
 
     {
         auto tm = g.time_phase(1);
-        if (opt_.sort_every > 0 && step_ > 0 && step_ % opt_.sort_every == 0) g.sort_particles();
+        if (opt_.sort_disorder > 0.0 &&
+            g.out_of_order > opt_.sort_disorder * static_cast<double>(particle_count()))
+            g.sort_particles();
         g.bin_particles();
         g.reset_grid();
     }
@@ -1322,7 +1385,6 @@ void Simulation::step(double max_dt) {
         }
         {
             auto tm = g.time_phase(3);
-            g.grid_velocities(dt, t, false);
             g.grid_velocities(dt, t, true);
         }
         {
