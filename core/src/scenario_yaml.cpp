@@ -160,6 +160,7 @@ GroupShape read_shape(const yaml::Node &n, int dim) {
     } else {
         const yaml::Node p = n.require("polygon");
         if (dim != 2) p.fail("a polygon needs a 2D scenario");
+        s.kind = GroupShape::Kind::polygon;
         p.expect_sequence();
         for (std::size_t i = 0; i < p.size(); ++i) {
             const Vec3 v = vec(p.at(i), 2, "m");

@@ -243,3 +243,53 @@ TEST(MaterialFailure, CutStepIsSubSteppedAndExact) {
     EXPECT_GT(smax, 1e3);
     EXPECT_LT(diff, 1e-9 * smax);
 }
+
+// Particle generation keeps exactly the lattice points inside the shape:
+// counted here independently (triangle by barycentric sign tests, cylinder
+// by its equation) on the same lattice, (i + 1/2) h / ppc.
+TEST(Generation, PolygonAndCylinderHoldTheirLatticePoints) {
+    auto tri = sim_from_text(std::string(kHead) +
+                             "grid: {origin: [0, 0], size: [2, 2], cell: 0.1}\n"
+                             "groups:\n  t: {material: m, particles_per_cell: 2,\n"
+                             "      shape: {polygon: [[0.1, 0.1], [1.9, 0.3], [0.7, 1.7]]}}\n"
+                             "time: {end: 1}\n");
+    auto side = [](double ax, double ay, double bx, double by, double px, double py) {
+        return (bx - ax) * (py - ay) - (by - ay) * (px - ax);
+    };
+    // Points within round-off of an edge may fall either way (the solver's
+    // even-odd rule and this sign test round differently): count them apart.
+    std::size_t expect = 0, on_edge = 0;
+    for (int i = 0; i < 40; ++i)
+        for (int j = 0; j < 40; ++j) {
+            const double x = (i + 0.5) * 0.05, y = (j + 0.5) * 0.05;
+            const double a = side(0.1, 0.1, 1.9, 0.3, x, y), b = side(1.9, 0.3, 0.7, 1.7, x, y),
+                         c = side(0.7, 1.7, 0.1, 0.1, x, y);
+            if (std::min({std::abs(a), std::abs(b), std::abs(c)}) < 1e-12)
+                ++on_edge;
+            else if ((a > 0 && b > 0 && c > 0) || (a < 0 && b < 0 && c < 0))
+                ++expect;
+        }
+    EXPECT_GE(tri->sim->particle_count(), expect);
+    EXPECT_LE(tri->sim->particle_count(), expect + on_edge);
+    // The particles' volume approaches the triangle's area (1.5) as the
+    // lattice refines: within the boundary cells' share, 10 %.
+    EXPECT_NEAR(static_cast<double>(expect) * 0.05 * 0.05, 1.5, 0.15);
+
+    auto cyl = sim_from_text(
+        "talus: 1\ndimension: 3\n"
+        "materials:\n  m: {model: linear_elastic, density: 1000, youngs_modulus: 1.0e6, "
+        "poisson_ratio: 0.3}\n"
+        "grid: {origin: [0, 0, 0], size: [1, 1, 1], cell: 0.1}\n"
+        "groups:\n  c: {material: m, particles_per_cell: 2,\n"
+        "      shape: {cylinder: {center: [0.5, 0.5, 0.5], radius: 0.3, axis: y, length: 0.6}}}\n"
+        "time: {end: 1}\n");
+    std::size_t n = 0;
+    for (int i = 0; i < 20; ++i)
+        for (int j = 0; j < 20; ++j)
+            for (int k = 0; k < 20; ++k) {
+                const double x = (i + 0.5) * 0.05, y = (j + 0.5) * 0.05, z = (k + 0.5) * 0.05;
+                if ((x - 0.5) * (x - 0.5) + (z - 0.5) * (z - 0.5) <= 0.09 && y >= 0.2 && y <= 0.8)
+                    ++n;
+            }
+    EXPECT_EQ(cyl->sim->particle_count(), n);
+}
