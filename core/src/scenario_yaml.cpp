@@ -24,7 +24,9 @@ const std::vector<std::pair<std::string_view, Keys>> &schema() {
           "nodal_velocities", "particle_velocities", "loads", "solver", "time", "output"}},
         {"grid", {"origin", "size", "cell"}},
         {"materials.*", {"model", "density", "initial_state"}},
-        {"groups.*", {"material", "shape", "particles_per_cell", "velocity", "initial_stress"}},
+        {"groups.*",
+         {"material", "shape", "particles_per_cell", "velocity", "angular_velocity",
+          "initial_stress"}},
         {"groups.*.shape", {"box", "sphere", "cylinder", "polygon"}},
         {"groups.*.shape.box", {"min", "max"}},
         {"groups.*.shape.sphere", {"center", "radius"}},
@@ -304,6 +306,12 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
             gs.particles_per_cell = static_cast<int>(n);
         }
         if (const yaml::Node v = g.get("velocity"); v.defined()) gs.velocity = vec(v, s.dim, "m/s");
+        if (const yaml::Node w = g.get("angular_velocity"); w.defined()) {
+            if (s.dim == 2)
+                gs.angular_velocity = {0.0, 0.0, w.as_double()};
+            else
+                gs.angular_velocity = vec(w, 3, "rad/s");
+        }
         if (const yaml::Node st = g.get("initial_stress"); st.defined())
             gs.stress = read_initial_stress(st);
         s.groups.push_back(std::move(gs));

@@ -1,6 +1,7 @@
 // The explicit MPM cycle. Equation numbers refer to seed 000 (the MPoint
 // theory manual) unless stated; docs/theory.md has the full account.
 #include <talus/solver.hpp>
+#include <talus/stress_rotation.hpp>
 
 #include <talus/sdk/voigt.hpp>
 
@@ -206,52 +207,6 @@ struct Simulation::Impl {
 };
 
 namespace {
-
-// Hughes-Winget incremental rotation (Hughes & Winget 1980):
-// Q = (I - A)^-1 (I + A) with A = dt skew(L) / 2. For a skew matrix this
-// Cayley transform has the closed form Q = I + 2 (A + A^2) / (1 + |a|^2),
-// a the axial vector of A; Q is exactly orthogonal, so the rotated stress
-// keeps its invariants.
-__attribute__((always_inline)) inline void hughes_winget(const double *L, double dt, double *sig) {
-    const double a1 = 0.25 * dt * (L[7] - L[5]); // A_zy
-    const double a2 = 0.25 * dt * (L[2] - L[6]); // A_xz
-    const double a3 = 0.25 * dt * (L[3] - L[1]); // A_yx
-    const double aa = a1 * a1 + a2 * a2 + a3 * a3;
-    if (aa == 0.0) return;
-    const double c = 2.0 / (1.0 + aa);
-    if (a1 == 0.0 && a2 == 0.0) {
-        // In-plane spin (always so in 2D): a rotation about z by the angle
-        // with cos = 1 - c a3^2, sin = c a3.
-        const double co = 1.0 - c * a3 * a3, si = c * a3;
-        const double sxx = sig[0], syy = sig[1], sxy = sig[3], syz = sig[4], sxz = sig[5];
-        const double cc = co * co, ss = si * si, cs = co * si;
-        sig[0] = cc * sxx - 2.0 * cs * sxy + ss * syy;
-        sig[1] = ss * sxx + 2.0 * cs * sxy + cc * syy;
-        sig[3] = cs * (sxx - syy) + (cc - ss) * sxy;
-        sig[5] = co * sxz - si * syz;
-        sig[4] = si * sxz + co * syz;
-        return;
-    }
-    // A + A^2 with A^2 = a a^T - |a|^2 I.
-    double Q[3][3] = {{1.0 + c * (a1 * a1 - aa), c * (-a3 + a1 * a2), c * (a2 + a1 * a3)},
-                      {c * (a3 + a2 * a1), 1.0 + c * (a2 * a2 - aa), c * (-a1 + a2 * a3)},
-                      {c * (-a2 + a3 * a1), c * (a1 + a3 * a2), 1.0 + c * (a3 * a3 - aa)}};
-    const double S[3][3] = {
-        {sig[0], sig[3], sig[5]}, {sig[3], sig[1], sig[4]}, {sig[5], sig[4], sig[2]}};
-    double QS[3][3];
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j)
-            QS[i][j] = Q[i][0] * S[0][j] + Q[i][1] * S[1][j] + Q[i][2] * S[2][j];
-    auto R = [&](int i, int j) {
-        return QS[i][0] * Q[j][0] + QS[i][1] * Q[j][1] + QS[i][2] * Q[j][2];
-    };
-    sig[0] = R(0, 0);
-    sig[1] = R(1, 1);
-    sig[2] = R(2, 2);
-    sig[3] = R(0, 1);
-    sig[4] = R(1, 2);
-    sig[5] = R(0, 2);
-}
 
 inline double stress_work(const double *sig, const double *de) {
     return sig[0] * de[0] + sig[1] * de[1] + sig[2] * de[2] + sig[3] * de[3] + sig[4] * de[4] +
@@ -1216,6 +1171,8 @@ Simulation::Simulation(Scenario &scenario, SolverOptions options)
             hi[dd] = static_cast<int>(std::ceil((bb.max[dd] - g.origin[dd]) / sub)) + 1;
         }
         const double V0 = std::pow(sub, D);
+        const double centre[3] = {0.5 * (bb.min[0] + bb.max[0]), 0.5 * (bb.min[1] + bb.max[1]),
+                                  0.5 * (bb.min[2] + bb.max[2])};
         double surface = -std::numeric_limits<double>::infinity();
         if (gs.stress.kind == InitialStress::Kind::geostatic) {
             surface = gs.stress.surface.value_or(bb.max[static_cast<std::size_t>(D - 1)]);
@@ -1246,10 +1203,16 @@ Simulation::Simulation(Scenario &scenario, SolverOptions options)
                     s.resize(p + 1);
                     s.id[p] = next_id++;
                     s.group[p] = static_cast<std::int32_t>(gi);
+                    // v = v0 + w x (x - centre): a rigid motion.
+                    const Vec3 &w = gs.angular_velocity;
+                    const double r[3] = {x[0] - centre[0], x[1] - centre[1],
+                                         D == 3 ? x[2] - centre[2] : 0.0};
+                    const double wxr[3] = {w[1] * r[2] - w[2] * r[1], w[2] * r[0] - w[0] * r[2],
+                                           w[0] * r[1] - w[1] * r[0]};
                     for (int d = 0; d < D; ++d) {
                         const std::size_t dd = static_cast<std::size_t>(d);
                         s.x[dd][p] = s.x0[dd][p] = x[d];
-                        s.v[dd][p] = gs.velocity[dd];
+                        s.v[dd][p] = gs.velocity[dd] + wxr[d];
                         s.dx[dd][p] = 0.0;
                     }
                     s.vol0[p] = V0;
@@ -1276,7 +1239,18 @@ Simulation::Simulation(Scenario &scenario, SolverOptions options)
                               s.state.begin() + static_cast<std::ptrdiff_t>(p * s.state_size));
                     std::fill_n(&s.de[6 * p], 6, 0.0);
                     if (s.has_L) std::fill_n(&s.L[9 * p], 9, 0.0);
-                    if (s.has_C) std::fill_n(&s.C[9 * p], 9, 0.0);
+                    if (s.has_C) {
+                        // The affine transfers start from the rigid motion's
+                        // exact velocity gradient, skew(w).
+                        double *C = &s.C[9 * p];
+                        std::fill_n(C, 9, 0.0);
+                        C[1] = -w[2];
+                        C[2] = w[1];
+                        C[3] = w[2];
+                        C[5] = -w[0];
+                        C[6] = -w[1];
+                        C[7] = w[0];
+                    }
                     s.work[p] = 0.0;
                     if (s.has_divv) s.divv[p] = 0.0;
                     std::uint32_t lm = 0, fm = 0;

@@ -3,6 +3,7 @@
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <map>
 
 using talus::test::advance;
 using talus::test::contains;
@@ -292,4 +293,76 @@ TEST(Generation, PolygonAndCylinderHoldTheirLatticePoints) {
                     ++n;
             }
     EXPECT_EQ(cyl->sim->particle_count(), n);
+}
+
+// A uniform initial stress is set as given on every particle.
+TEST(InitialState, UniformStress) {
+    auto s = sim_from_text(
+        std::string(kHead) +
+        "grid: {origin: [0, 0], size: [1, 1], cell: 0.1}\n"
+        "groups:\n  g: {material: m, shape: {box: {min: [0.2, 0.2], max: [0.6, 0.6]}},\n"
+        "      initial_stress: {uniform: [-1, -2, -3, 4, 0, 0]}}\n"
+        "time: {end: 1}\n");
+    const auto &set = s->sim->sets()[0];
+    const double given[6] = {-1, -2, -3, 4, 0, 0};
+    for (std::size_t p = 0; p < set.n; ++p)
+        for (std::size_t c = 0; c < 6; ++c)
+            ASSERT_EQ(set.stress[6 * p + c], given[c]);
+}
+
+// Cell-averaged dilation (eqs. 52-53): after one step every point of a cell
+// has the same volumetric strain increment, equal to the volume-weighted
+// mean of the increments the points would have had without averaging (the
+// run without the option); the deviatoric part is untouched. A block with a
+// non-uniform velocity field gives non-trivial dilation. Round-off: 1e-12
+// of the increments.
+TEST(CellAveragedDilation, EachCellGetsItsVolumeWeightedMeanDilation) {
+    const std::string yaml = std::string(kHead) +
+                             "grid: {origin: [0, 0], size: [1, 1], cell: 0.1}\n"
+                             "groups:\n  g: {material: m, particles_per_cell: 3, shape: {box: "
+                             "{min: [0.2, 0.2], max: [0.8, 0.8]}}}\n"
+                             "time: {end: 1}\n";
+    auto plain = sim_from_text(yaml + "solver: {scheme: musl, dt: 1.0e-4}\n");
+    auto avg =
+        sim_from_text(yaml + "solver: {scheme: musl, dt: 1.0e-4, cell_averaged_dilation: true}\n");
+    for (auto *sim : {plain->sim.get(), avg->sim.get()})
+        for (auto &set : sim->sets())
+            for (std::size_t p = 0; p < set.n; ++p) {
+                const double x = set.x[0][p], y = set.x[1][p];
+                set.v[0][p] = std::sin(7.0 * x) * std::cos(3.0 * y);
+                set.v[1][p] = 0.5 * std::cos(5.0 * x * y);
+            }
+    plain->sim->step(1.0);
+    avg->sim->step(1.0);
+    const auto &a = plain->sim->sets()[0];
+    const auto &b = avg->sim->sets()[0];
+    // Group by the cell that held the point at the start of the step.
+    std::map<int, std::vector<std::size_t>> cells;
+    for (std::size_t p = 0; p < a.n; ++p) {
+        const int cx = static_cast<int>(std::floor((a.x[0][p] - a.dx[0][p]) / 0.1));
+        const int cy = static_cast<int>(std::floor((a.x[1][p] - a.dx[1][p]) / 0.1));
+        cells[cx + 100 * cy].push_back(p);
+    }
+    double worst = 0.0, scale = 0.0, spread = 0.0;
+    for (const auto &[key, pts] : cells) {
+        double num = 0.0, den = 0.0;
+        for (std::size_t p : pts) {
+            num += (a.de[6 * p] + a.de[6 * p + 1]) * a.J[p] * a.vol0[p];
+            den += a.J[p] * a.vol0[p];
+        }
+        const double mean = num / den;
+        for (std::size_t p : pts) {
+            const double vol_b = b.de[6 * p] + b.de[6 * p + 1];
+            worst = std::max(worst, std::abs(vol_b - mean));
+            scale = std::max(scale, std::abs(a.de[6 * p] + a.de[6 * p + 1]));
+            spread = std::max(spread, std::abs(a.de[6 * p] + a.de[6 * p + 1] - mean));
+            // Deviatoric parts unchanged: the difference of the normal
+            // components and the shear.
+            ASSERT_NEAR(b.de[6 * p] - b.de[6 * p + 1], a.de[6 * p] - a.de[6 * p + 1],
+                        1e-12 * scale + 1e-300);
+            ASSERT_NEAR(b.de[6 * p + 3], a.de[6 * p + 3], 1e-12 * scale + 1e-300);
+        }
+    }
+    EXPECT_GT(spread, 1e-3 * scale) << "the test field must vary within cells";
+    EXPECT_LT(worst, 1e-12 * scale);
 }

@@ -170,26 +170,14 @@ TEST(Conservation, AffineFieldReproducedExactlyByApic) {
 }
 
 namespace {
-// Total angular momentum about z after `steps` steps of a spinning disk.
+// Total angular momentum about z at the start and after 200 steps of the
+// spinning-disk scenario of configs/, with the given transfer.
 std::pair<double, double> spinning_disk(const std::string &transfer) {
-    auto s =
-        sim_from_text("talus: 1\ndimension: 2\ngrid: {origin: [0, 0], size: [2, 2], cell: 0.05}\n"
-                      "materials:\n  m: {model: linear_elastic, density: 1000, youngs_modulus: "
-                      "1.0e6, poisson_ratio: 0.3}\n"
-                      "groups:\n  disk: {material: m, particles_per_cell: 2, shape: {sphere: "
-                      "{center: [1, 1], radius: 0.4}}}\n"
-                      "solver: {transfer: " +
-                      transfer + ", shape: bspline2, cfl: 0.3}\ntime: {end: 1.0}\n");
-    const double omega = 2.0;
-    for (auto &set : s->sim->sets())
-        for (std::size_t p = 0; p < set.n; ++p) {
-            set.v[0][p] = -omega * (set.x[1][p] - 1.0);
-            set.v[1][p] = omega * (set.x[0][p] - 1.0);
-            if (transfer == "apic") { // the rigid spin's affine part
-                set.C[9 * p + 1] = -omega;
-                set.C[9 * p + 3] = omega;
-            }
-        }
+    auto s = talus::test::sim_from_config("configs/verification/spinning_disk_apic.yaml");
+    s->scenario.solver.transfer =
+        transfer == "apic" ? talus::Transfer::apic : talus::Transfer::flip;
+    s->scenario.solver.alpha = 0.0; // PIC when not APIC
+    s->sim = std::make_unique<talus::Simulation>(s->scenario);
     const double L0 = s->sim->diagnostics().angular_momentum[2];
     for (int k = 0; k < 200; ++k)
         s->sim->step(1.0);
@@ -206,4 +194,22 @@ TEST(Conservation, ApicConservesAngularMomentumOfASpinningDisk) {
     EXPECT_NEAR(L1, L0, 1e-10 * std::abs(L0));
     const auto [P0, P1] = spinning_disk("pic");
     EXPECT_LT(std::abs(P1), 0.99 * std::abs(P0)) << "PIC should dissipate angular momentum";
+}
+
+// The shipped free-fall scenario (3D, second-order positions): at its end the
+// centre of mass has fallen g t^2 / 2 and moves at g t, to round-off.
+TEST(Conservation, FreeFallConfigMatchesItsClosedForm) {
+    auto s = talus::test::sim_from_config("configs/verification/free_fall.yaml");
+    advance(*s->sim, s->scenario.end_time);
+    const double t = s->sim->time(), g = -9.81;
+    double m = 0, z = 0, z0 = 0, vz = 0;
+    for (const auto &set : s->sim->sets())
+        for (std::size_t p = 0; p < set.n; ++p) {
+            m += set.mass[p];
+            z += set.mass[p] * set.x[2][p];
+            z0 += set.mass[p] * set.x0[2][p];
+            vz += set.mass[p] * set.v[2][p];
+        }
+    EXPECT_NEAR(vz / m, g * t, 1e-12 * std::abs(g * t));
+    EXPECT_NEAR((z - z0) / m, 0.5 * g * t * t, 1e-10 * std::abs(0.5 * g * t * t));
 }

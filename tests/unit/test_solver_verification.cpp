@@ -49,7 +49,7 @@ Oscillation bar_reference() {
 }
 
 // The bar's centre-of-mass velocity over two periods.
-Oscillation run_bar(const std::string &scheme) {
+Oscillation run_bar(const std::string &scheme, const std::string &transfer = "flip") {
     auto s = talus::test::make_sim([&] {
         std::ifstream in(talus::test::source_dir() / "configs/verification/bar_vibration.yaml");
         std::stringstream ss;
@@ -57,6 +57,8 @@ Oscillation run_bar(const std::string &scheme) {
         std::string text = ss.str();
         const auto at = text.find("scheme: musl");
         text.replace(at, 12, "scheme: " + scheme);
+        const auto tr = text.find("transfer: flip");
+        text.replace(tr, 14, "transfer: " + transfer);
         return talus::yaml::load_string(text, "bar_vibration.yaml");
     }());
     std::vector<double> t, v;
@@ -84,6 +86,13 @@ TEST(Verification, BarVibrationPeriodAndAmplitudeEveryScheme) {
         const Oscillation o = run_bar(scheme);
         EXPECT_NEAR(o.period, ref.period, 0.005 * ref.period) << scheme;
         EXPECT_NEAR(o.amplitude, ref.amplitude, 0.01 * ref.amplitude) << scheme;
+    }
+    // The affine transfers (PIC plus an affine field: APIC's C = B D^-1, the
+    // Taylor transfer's C = grad v) on the same bar, USL: same bounds.
+    for (const char *transfer : {"apic", "tpic"}) {
+        const Oscillation o = run_bar("usl", transfer);
+        EXPECT_NEAR(o.period, ref.period, 0.005 * ref.period) << transfer;
+        EXPECT_NEAR(o.amplitude, ref.amplitude, 0.01 * ref.amplitude) << transfer;
     }
 }
 

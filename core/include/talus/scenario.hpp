@@ -56,6 +56,9 @@ struct GroupSpec {
     GroupShape shape;
     int particles_per_cell = 2; // per direction
     Vec3 velocity{0, 0, 0};
+    // Rigid rotation added to the initial velocity, about the centre of the
+    // shape's bounding box: rad/s about z in 2D, a vector in 3D.
+    Vec3 angular_velocity{0, 0, 0};
     InitialStress stress;
 };
 
