@@ -192,6 +192,7 @@ struct Simulation::Impl {
     // dilation): one pass over the particles less. An inverted point found
     // there is remembered here and reported by kinematics_and_update.
     bool kinematics_done = false;
+    bool positions_applied = false; // G2P moved the particles (fused USL)
     int inverted_set = -1;
     std::size_t inverted_particle = 0;
     std::string inversion_message(const ParticleSet &s, std::size_t p, double t) const {
@@ -280,6 +281,8 @@ struct Stencil {
             const std::size_t dd = static_cast<std::size_t>(d);
             xi[d] = (s.x[dd][p] - g.origin[dd]) * g.inv_h + g.ghost;
             S::eval(xi[d], s.lp[p], base[d], w1[d], dw1[d]);
+            for (int k = 0; k < W; ++k)
+                dw1[d][k] *= g.inv_h; // d/dx = d/dxi / h, once per axis
         }
         int q = 0;
         if constexpr (D == 2) {
@@ -287,8 +290,8 @@ struct Stencil {
                 for (int a = 0; a < W; ++a, ++q) {
                     idx[q] = g.node_index(base[0] + a, base[1] + b, 0);
                     w[q] = w1[0][a] * w1[1][b];
-                    grad[q][0] = dw1[0][a] * w1[1][b] * g.inv_h;
-                    grad[q][1] = w1[0][a] * dw1[1][b] * g.inv_h;
+                    grad[q][0] = dw1[0][a] * w1[1][b];
+                    grad[q][1] = w1[0][a] * dw1[1][b];
                     if constexpr (Offsets) {
                         off[q][0] = (base[0] + a - xi[0]) * g.h;
                         off[q][1] = (base[1] + b - xi[1]) * g.h;
@@ -301,9 +304,9 @@ struct Stencil {
                         idx[q] = g.node_index(base[0] + a, base[1] + b, base[2] + c);
                         const double wbc = w1[1][b] * w1[2][c];
                         w[q] = w1[0][a] * wbc;
-                        grad[q][0] = dw1[0][a] * wbc * g.inv_h;
-                        grad[q][1] = w1[0][a] * dw1[1][b] * w1[2][c] * g.inv_h;
-                        grad[q][2] = w1[0][a] * w1[1][b] * dw1[2][c] * g.inv_h;
+                        grad[q][0] = dw1[0][a] * wbc;
+                        grad[q][1] = w1[0][a] * dw1[1][b] * w1[2][c];
+                        grad[q][2] = w1[0][a] * w1[1][b] * dw1[2][c];
                         if constexpr (Offsets) {
                             off[q][0] = (base[0] + a - xi[0]) * g.h;
                             off[q][1] = (base[1] + b - xi[1]) * g.h;
@@ -452,7 +455,7 @@ void g2p_motion_pass(Simulation::Impl &g, double dt, double t, double kin_dt) {
             const std::size_t p = static_cast<std::size_t>(pp);
             Stencil<D, S, Apic> st;
             st.eval(g, s, p);
-            double vpic[D] = {}, vold[D] = {}, L[D][D] = {}, B[D][D] = {};
+            double vpic[D] = {}, vold[D] = {}, L[D][D] = {}, B[D][D] = {}, step[D];
             for (int q = 0; q < Stencil<D, S, Apic>::NN; ++q) {
                 const double *rec = vel + Impl::kRec * st.idx[q];
                 for (int d = 0; d < D; ++d) {
@@ -470,7 +473,7 @@ void g2p_motion_pass(Simulation::Impl &g, double dt, double t, double kin_dt) {
             for (int d = 0; d < D; ++d) {
                 const std::size_t dd = static_cast<std::size_t>(d);
                 s.v[dd][p] = vpic[d] + alpha * (s.v[dd][p] - vold[d]);
-                s.dx[dd][p] = second ? 0.5 * dt * (vpic[d] + vold[d]) : dt * vpic[d];
+                step[d] = second ? 0.5 * dt * (vpic[d] + vold[d]) : dt * vpic[d];
             }
             if constexpr (Kinematics) {
                 if (!kinematics_point<D>(s, p, &L[0][0], kin_dt, D, false)) {
@@ -508,10 +511,17 @@ void g2p_motion_pass(Simulation::Impl &g, double dt, double t, double kin_dt) {
                     for (int d = 0; d < D; ++d)
                         if (const auto &fn = f.c[static_cast<std::size_t>(d)]) {
                             s.v[static_cast<std::size_t>(d)][p] = (*fn)(t + dt);
-                            s.dx[static_cast<std::size_t>(d)][p] =
-                                0.5 * dt * ((*fn)(t) + (*fn)(t + dt));
+                            step[d] = 0.5 * dt * ((*fn)(t) + (*fn)(t + dt));
                         }
                 }
+            }
+            // With the kinematics fused in (USL) nothing later in the step
+            // needs the start position: move the particle now.
+            for (int d = 0; d < D; ++d) {
+                if constexpr (Kinematics)
+                    s.x[static_cast<std::size_t>(d)][p] += step[d];
+                else
+                    s.dx[static_cast<std::size_t>(d)][p] = step[d];
             }
         }
     }
@@ -524,6 +534,7 @@ void g2p_motion_kernel(Simulation::Impl &g, double dt, double t, bool gradient, 
     const bool grad = gradient || tr != Transfer::flip;
     if (kin_dt > 0.0) {
         g.kinematics_done = true;
+        g.positions_applied = true;
         g.inverted_set = -1;
         if (tr == Transfer::apic) return g2p_motion_pass<D, S, true, true, true>(g, dt, t, kin_dt);
         return g2p_motion_pass<D, S, true, false, true>(g, dt, t, kin_dt);
@@ -1039,7 +1050,7 @@ void Simulation::Impl::finish_step() {
             double v2 = 0.0;
             for (int d = 0; d < D; ++d) {
                 const std::size_t dd = static_cast<std::size_t>(d);
-                const double x = s.x[dd][p] + s.dx[dd][p];
+                const double x = positions_applied ? s.x[dd][p] : s.x[dd][p] + s.dx[dd][p];
                 s.x[dd][p] = x;
                 in = in && x >= origin[dd] && x <= origin[dd] + sc.size[dd];
                 v2 += s.v[dd][p] * s.v[dd][p];
@@ -1071,6 +1082,7 @@ void Simulation::Impl::finish_step() {
     }
     max_speed = speed;
     out_of_order = disorder;
+    positions_applied = false;
     slabs_changed = moved > 0;
     if (outside > 0) remove_or_report_leaving();
 }
