@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <filesystem>
 
 namespace talus {
 
@@ -76,6 +77,22 @@ MaterialSpec read_material(const yaml::Node &node, PluginRegistry &registry) {
         }
     }
     return spec;
+}
+
+void load_plugin_list(const yaml::Node &list, PluginRegistry &registry) {
+    list.expect_sequence();
+    for (std::size_t i = 0; i < list.size(); ++i) {
+        const yaml::Node p = list.at(i);
+        std::string name = p.as_string();
+        // A relative path is relative to the file, not the working directory.
+        if (name.find('/') != std::string::npos && !std::filesystem::path(name).is_absolute())
+            name = (std::filesystem::path(list.file()).parent_path() / name).string();
+        try {
+            registry.load(name);
+        } catch (const Error &e) {
+            p.fail(e.what());
+        }
+    }
 }
 
 std::unique_ptr<MaterialInstance> instantiate(const MaterialSpec &spec, const yaml::Node &node) {

@@ -33,21 +33,8 @@ PointCase read_point_case(const yaml::Node &root, PluginRegistry &registry) {
         version.fail(fmt::format("unsupported file format version {}; this talus reads version 1",
                                  version.as_integer()));
 
-    if (const yaml::Node plugins = root.get("plugins"); plugins.defined()) {
-        plugins.expect_sequence();
-        for (std::size_t i = 0; i < plugins.size(); ++i) {
-            const yaml::Node p = plugins.at(i);
-            std::string name = p.as_string();
-            // A relative path is relative to the case file, not the cwd.
-            if (name.find('/') != std::string::npos && !std::filesystem::path(name).is_absolute())
-                name = (std::filesystem::path(root.file()).parent_path() / name).string();
-            try {
-                registry.load(name);
-            } catch (const Error &e) {
-                p.fail(e.what());
-            }
-        }
-    }
+    if (const yaml::Node plugins = root.get("plugins"); plugins.defined())
+        load_plugin_list(plugins, registry);
 
     PointCase pc;
     const yaml::Node mat = root.require("material");

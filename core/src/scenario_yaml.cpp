@@ -225,20 +225,8 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
     if (s.dim != 2 && s.dim != 3)
         dim.fail(fmt::format("expected 2 (plane strain) or 3, got {}", s.dim));
 
-    if (const yaml::Node plugins = root.get("plugins"); plugins.defined()) {
-        plugins.expect_sequence();
-        for (std::size_t i = 0; i < plugins.size(); ++i) {
-            const yaml::Node p = plugins.at(i);
-            std::string name = p.as_string();
-            if (name.find('/') != std::string::npos && !std::filesystem::path(name).is_absolute())
-                name = (std::filesystem::path(root.file()).parent_path() / name).string();
-            try {
-                registry.load(name);
-            } catch (const Error &e) {
-                p.fail(e.what());
-            }
-        }
-    }
+    if (const yaml::Node plugins = root.get("plugins"); plugins.defined())
+        load_plugin_list(plugins, registry);
 
     // Grid.
     const yaml::Node grid = root.require("grid");

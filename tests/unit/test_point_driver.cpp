@@ -1,6 +1,6 @@
 // The material-point driver: peer test vectors, closed-form paths, cut-step
 // sub-stepping, and the errors a user sees for bad case files.
-#include "test_paths.hpp"
+#include "solver_helpers.hpp"
 
 #include <talus/point_driver.hpp>
 
@@ -38,23 +38,6 @@ std::string error_of(const std::string &yaml) {
     return "(no error)";
 }
 
-std::vector<std::vector<double>> read_csv(const std::filesystem::path &file) {
-    std::ifstream in(file);
-    std::string line;
-    std::getline(in, line); // header
-    std::vector<std::vector<double>> rows;
-    while (std::getline(in, line)) {
-        if (line.empty()) continue;
-        std::vector<double> row;
-        std::stringstream ss(line);
-        std::string cell;
-        while (std::getline(ss, cell, ','))
-            row.push_back(std::stod(cell));
-        rows.push_back(row);
-    }
-    return rows;
-}
-
 } // namespace
 
 // Every row of the peer's linear-elastic unit-test vectors (E = 1e7,
@@ -63,7 +46,8 @@ std::vector<std::vector<double>> read_csv(const std::filesystem::path &file) {
 // multiply-adds per component, so 1e-9 relative is generous.
 TEST(PointDriver, ReproducesPeerLinearElasticVectors) {
     NoEnv e;
-    const auto rows = read_csv(talus::test::data_dir() / "cbgeo_linear_elastic_vectors.csv");
+    const auto rows =
+        talus::test::read_numeric_csv(talus::test::data_dir() / "cbgeo_linear_elastic_vectors.csv");
     ASSERT_EQ(rows.size(), 4u);
     talus::PluginRegistry reg;
     for (std::size_t r = 0; r < rows.size(); ++r) {
