@@ -92,10 +92,6 @@ int main(int argc, char **argv) {
         {"3d_block_odd_bspline2_linear_elastic", 3, block_yaml(3, 49, 51, 53, 2, 0.02)},
         {"2d_block_bspline2_linear_elastic", 2, block_yaml(2, 500, 500, 0, 2, 0.002)},
     };
-    if (threads > 0) {
-        talus::SolverOptions so;
-        so.threads = threads; // applied when the first Simulation is made
-    }
     try {
         for (const Case &c : cases) {
             if (!only.empty() && c.name != only) continue;

@@ -35,7 +35,7 @@ void for_each_array(PS &s, F &&f) {
         f(s.x[static_cast<std::size_t>(d)], 1);
         f(s.x0[static_cast<std::size_t>(d)], 1);
         f(s.v[static_cast<std::size_t>(d)], 1);
-        f(s.dx[static_cast<std::size_t>(d)], 1);
+        if (s.has_dx) f(s.dx[static_cast<std::size_t>(d)], 1);
     }
     f(s.mass, 1);
     f(s.vol0, 1);
@@ -135,7 +135,7 @@ struct Simulation::Impl {
     // Kernels for this dimension and shape function.
     void (*p2g)(Impl &, bool mass_momentum, bool forces, bool remap, double t) = nullptr;
     // kin_dt > 0: also do the kinematics over kin_dt (fused USL path).
-    void (*g2p_motion)(Impl &, double dt, double t, bool gradient, double kin_dt) = nullptr;
+    void (*g2p_motion)(Impl &, double dt, bool gradient, double kin_dt) = nullptr;
     void (*g2p_gradient)(Impl &, const double *field, std::size_t offset) = nullptr;
 
     explicit Impl(Simulation &s) : sim(s) {}
@@ -202,8 +202,27 @@ struct Simulation::Impl {
             sim.step_ + 1, t, s.id[p], sim.sc_.groups[static_cast<std::size_t>(s.group[p])].name,
             s.J[p]);
     }
-    double load_value(const Load &l, int d, double t) const {
-        return l.value[static_cast<std::size_t>(d)](t);
+
+    // Functions of time evaluated once per step, not once per particle:
+    // each load's value at t, each fixity's velocity at t and t + dt.
+    std::vector<std::array<double, 3>> load_now, fix_start, fix_end;
+    std::vector<double> group_area; // traction area (h / ppc)^(dim - 1) per group
+    void evaluate_time_functions(double t, double dt) {
+        const Scenario &sc = sim.sc_;
+        load_now.resize(sc.loads.size());
+        for (std::size_t k = 0; k < sc.loads.size(); ++k)
+            for (int d = 0; d < dim; ++d)
+                load_now[k][static_cast<std::size_t>(d)] =
+                    sc.loads[k].value[static_cast<std::size_t>(d)](t);
+        fix_start.resize(sc.particle_velocities.size());
+        fix_end.resize(sc.particle_velocities.size());
+        for (std::size_t k = 0; k < sc.particle_velocities.size(); ++k)
+            for (int d = 0; d < dim; ++d)
+                if (const auto &fn =
+                        sc.particle_velocities[k].velocity.c[static_cast<std::size_t>(d)]) {
+                    fix_start[k][static_cast<std::size_t>(d)] = (*fn)(t);
+                    fix_end[k][static_cast<std::size_t>(d)] = (*fn)(t + dt);
+                }
     }
 };
 
@@ -317,11 +336,10 @@ struct Stencil {
     }
 };
 
-// Sum of the applied forces on particle p at time t (point loads and
+// Sum of the applied forces on particle p at this step (point loads and
 // tractions; a traction acts on the particle's face area V0^((d-1)/d)).
 template <int D>
-void particle_load(const Simulation::Impl &g, const ParticleSet &s, std::size_t p, double t,
-                   double *f) {
+void particle_load(const Simulation::Impl &g, const ParticleSet &s, std::size_t p, double *f) {
     for (int d = 0; d < D; ++d)
         f[d] = 0.0;
     std::uint32_t mask = s.load_mask[p];
@@ -329,11 +347,11 @@ void particle_load(const Simulation::Impl &g, const ParticleSet &s, std::size_t 
     while (mask) {
         const int k = __builtin_ctz(mask);
         mask &= mask - 1;
-        const Load &l = loads[static_cast<std::size_t>(k)];
-        const double scale =
-            l.kind == Load::Kind::traction ? std::pow(s.vol0[p], (D - 1.0) / D) : 1.0;
+        const double scale = loads[static_cast<std::size_t>(k)].kind == Load::Kind::traction
+                                 ? g.group_area[static_cast<std::size_t>(s.group[p])]
+                                 : 1.0;
         for (int d = 0; d < D; ++d)
-            f[d] += scale * g.load_value(l, d, t);
+            f[d] += scale * g.load_now[static_cast<std::size_t>(k)][static_cast<std::size_t>(d)];
     }
 }
 
@@ -342,7 +360,7 @@ void particle_load(const Simulation::Impl &g, const ParticleSet &s, std::size_t 
 // external force (eq. 21). Remap re-projects the updated particle momentum
 // only (MUSL) into the momentum slots.
 template <int D, class S, bool Mass, bool Momentum, bool Affine, bool Forces>
-void p2g_pass(Simulation::Impl &g, double t, const double *grav) {
+void p2g_pass(Simulation::Impl &g, const double *grav) {
     using Impl = Simulation::Impl;
     auto &sets = g.sim.sets();
     double *acc = g.acc.data();
@@ -378,7 +396,7 @@ void p2g_pass(Simulation::Impl &g, double t, const double *grav) {
                             Vsig[1][2] = Vsig[2][1] = V * sg[4];
                             Vsig[0][2] = Vsig[2][0] = V * sg[5];
                         }
-                        if (s.load_mask[p]) particle_load<D>(g, s, p, t, fext);
+                        if (s.load_mask[p]) particle_load<D>(g, s, p, fext);
                         for (int d = 0; d < D; ++d)
                             fext[d] += m * grav[d];
                     }
@@ -417,19 +435,19 @@ void p2g_kernel(Simulation::Impl &g, bool mass_momentum, bool forces, bool remap
         grav[d] = sc.gravity[static_cast<std::size_t>(d)] * ramp;
     const bool affine = sc.solver.transfer != Transfer::flip;
     // MUSL remap: the updated particle momentum alone, no affine term.
-    if (remap) return p2g_pass<D, S, false, true, false, false>(g, t, grav);
+    if (remap) return p2g_pass<D, S, false, true, false, false>(g, grav);
     // USF / USAVG second pass: forces alone, from the updated stress.
-    if (!mass_momentum) return p2g_pass<D, S, false, false, false, true>(g, t, grav);
+    if (!mass_momentum) return p2g_pass<D, S, false, false, false, true>(g, grav);
     if (affine) {
         if (forces)
-            p2g_pass<D, S, true, true, true, true>(g, t, grav);
+            p2g_pass<D, S, true, true, true, true>(g, grav);
         else
-            p2g_pass<D, S, true, true, true, false>(g, t, grav);
+            p2g_pass<D, S, true, true, true, false>(g, grav);
     } else {
         if (forces)
-            p2g_pass<D, S, true, true, false, true>(g, t, grav);
+            p2g_pass<D, S, true, true, false, true>(g, grav);
         else
-            p2g_pass<D, S, true, true, false, false>(g, t, grav);
+            p2g_pass<D, S, true, true, false, false>(g, grav);
     }
 }
 
@@ -439,7 +457,7 @@ void p2g_kernel(Simulation::Impl &g, bool mass_momentum, bool forces, bool remap
 // docs/theory.md on eq. 37), and optionally the velocity gradient from v~
 // (eq. 38).
 template <int D, class S, bool Gradient, bool Apic, bool Kinematics>
-void g2p_motion_pass(Simulation::Impl &g, double dt, double t, double kin_dt) {
+void g2p_motion_pass(Simulation::Impl &g, double dt, double kin_dt) {
     using Impl = Simulation::Impl;
     auto &sets = g.sim.sets();
     const auto &sc = g.sim.scenario();
@@ -505,14 +523,14 @@ void g2p_motion_pass(Simulation::Impl &g, double dt, double t, double kin_dt) {
             if (std::uint32_t mask = s.fix_mask[p]) {
                 const auto &fixes = sc.particle_velocities;
                 while (mask) {
-                    const int k = __builtin_ctz(mask);
+                    const std::size_t k = static_cast<std::size_t>(__builtin_ctz(mask));
                     mask &= mask - 1;
-                    const auto &f = fixes[static_cast<std::size_t>(k)].velocity;
-                    for (int d = 0; d < D; ++d)
-                        if (const auto &fn = f.c[static_cast<std::size_t>(d)]) {
-                            s.v[static_cast<std::size_t>(d)][p] = (*fn)(t + dt);
-                            step[d] = 0.5 * dt * ((*fn)(t) + (*fn)(t + dt));
-                        }
+                    for (int d = 0; d < D; ++d) {
+                        const std::size_t dd = static_cast<std::size_t>(d);
+                        if (!fixes[k].velocity.c[dd]) continue;
+                        s.v[dd][p] = g.fix_end[k][dd];
+                        step[d] = 0.5 * dt * (g.fix_start[k][dd] + g.fix_end[k][dd]);
+                    }
                 }
             }
             // With the kinematics fused in (USL) nothing later in the step
@@ -528,7 +546,7 @@ void g2p_motion_pass(Simulation::Impl &g, double dt, double t, double kin_dt) {
 }
 
 template <int D, class S>
-void g2p_motion_kernel(Simulation::Impl &g, double dt, double t, bool gradient, double kin_dt) {
+void g2p_motion_kernel(Simulation::Impl &g, double dt, bool gradient, double kin_dt) {
     const Transfer tr = g.sim.scenario().solver.transfer;
     // APIC and TPIC need the gradient of v~ for C whatever the scheme.
     const bool grad = gradient || tr != Transfer::flip;
@@ -536,12 +554,12 @@ void g2p_motion_kernel(Simulation::Impl &g, double dt, double t, bool gradient, 
         g.kinematics_done = true;
         g.positions_applied = true;
         g.inverted_set = -1;
-        if (tr == Transfer::apic) return g2p_motion_pass<D, S, true, true, true>(g, dt, t, kin_dt);
-        return g2p_motion_pass<D, S, true, false, true>(g, dt, t, kin_dt);
+        if (tr == Transfer::apic) return g2p_motion_pass<D, S, true, true, true>(g, dt, kin_dt);
+        return g2p_motion_pass<D, S, true, false, true>(g, dt, kin_dt);
     }
-    if (tr == Transfer::apic) return g2p_motion_pass<D, S, true, true, false>(g, dt, t, 0.0);
-    if (grad) return g2p_motion_pass<D, S, true, false, false>(g, dt, t, 0.0);
-    g2p_motion_pass<D, S, false, false, false>(g, dt, t, 0.0);
+    if (tr == Transfer::apic) return g2p_motion_pass<D, S, true, true, false>(g, dt, 0.0);
+    if (grad) return g2p_motion_pass<D, S, true, false, false>(g, dt, 0.0);
+    g2p_motion_pass<D, S, false, false, false>(g, dt, 0.0);
 }
 
 // Velocity gradient (eq. 38) from one velocity field of the node records,
@@ -1148,6 +1166,8 @@ Simulation::Simulation(Scenario &scenario, SolverOptions options)
     impl_->setup_grid();
     Impl &g = *impl_;
     const int D = sc_.dim;
+    for (const GroupSpec &gs : sc_.groups)
+        g.group_area.push_back(std::pow(sc_.cell / gs.particles_per_cell, D - 1));
 
     // One particle set per material used by some group.
     std::vector<int> set_of(sc_.materials.size(), -1);
@@ -1166,7 +1186,10 @@ Simulation::Simulation(Scenario &scenario, SolverOptions options)
             s.dim = sc_.dim;
             s.has_C = sc_.solver.transfer != Transfer::flip;
             s.has_divv = sc_.solver.cell_averaged_dilation;
+            // USL without cell averaging does its kinematics and moves the
+            // particles inside G2P: no stored gradient or position step.
             s.has_L = !(sc_.solver.scheme == Scheme::usl && !sc_.solver.cell_averaged_dilation);
+            s.has_dx = s.has_L;
             sets_.push_back(std::move(s));
         }
         ParticleSet &s = sets_[static_cast<std::size_t>(set_of[gs.material])];
@@ -1225,7 +1248,7 @@ Simulation::Simulation(Scenario &scenario, SolverOptions options)
                         const std::size_t dd = static_cast<std::size_t>(d);
                         s.x[dd][p] = s.x0[dd][p] = x[d];
                         s.v[dd][p] = gs.velocity[dd] + wxr[d];
-                        s.dx[dd][p] = 0.0;
+                        if (s.has_dx) s.dx[dd][p] = 0.0;
                     }
                     s.vol0[p] = V0;
                     s.mass[p] = s.rho0 * V0;
@@ -1353,6 +1376,7 @@ void Simulation::step(double max_dt) {
     if (!(dt > 0.0))
         throw Error(fmt::format("step {}: time step {} is not positive", step_ + 1, dt));
     const double t = time_;
+    g.evaluate_time_functions(t, dt);
 
     {
         auto tm = g.time_phase(1);
@@ -1377,7 +1401,7 @@ void Simulation::step(double max_dt) {
             auto tm = g.time_phase(4);
             // USL without cell averaging does the kinematics inside G2P.
             const bool fuse = scheme == Scheme::usl && !sc_.solver.cell_averaged_dilation;
-            g.g2p_motion(g, dt, t, scheme == Scheme::usl, fuse ? dt : 0.0);
+            g.g2p_motion(g, dt, scheme == Scheme::usl, fuse ? dt : 0.0);
         }
         if (scheme == Scheme::musl) {
             // Modified USL: the updated particle momentum is mapped again and
@@ -1409,7 +1433,7 @@ void Simulation::step(double max_dt) {
         g.kinematics_and_update(dt, t);
         g.p2g(g, false, true, false, t);
         g.grid_velocities(dt, t, true);
-        g.g2p_motion(g, dt, t, false, 0.0);
+        g.g2p_motion(g, dt, false, 0.0);
     } else { // USAVG: half the increment at each end of the step (Nairn 2003)
         g.p2g(g, true, false, false, t);
         g.grid_velocities(dt, t, false);
@@ -1417,7 +1441,7 @@ void Simulation::step(double max_dt) {
         g.kinematics_and_update(0.5 * dt, t);
         g.p2g(g, false, true, false, t);
         g.grid_velocities(dt, t, true);
-        g.g2p_motion(g, dt, t, true, 0.0);
+        g.g2p_motion(g, dt, true, 0.0);
         g.kinematics_and_update(0.5 * dt, t + 0.5 * dt);
     }
     auto tm = g.time_phase(6);

@@ -40,10 +40,10 @@ struct ParticleSet {
     std::vector<std::uint32_t> load_mask, fix_mask; // bit k: loads[k] / particle_velocities[k]
 
     // Which optional arrays this run needs (the others stay empty): the
-    // third components only in 3D, L unless USL does its kinematics inside
-    // G2P, C for the affine transfers, divv for cell-averaged dilation.
+    // third components only in 3D, L and dx unless USL does its kinematics
+    // inside G2P, C for the affine transfers, divv for cell-averaged dilation.
     int dim = 3;
-    bool has_L = true, has_C = true, has_divv = true;
+    bool has_L = true, has_dx = true, has_C = true, has_divv = true;
 
     void resize(std::size_t count);
     // Moves particle `from` to slot `to` (for compaction and sorting).

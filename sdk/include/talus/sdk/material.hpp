@@ -270,10 +270,6 @@ inline double nonfinite_probe(const double *p, std::size_t n) {
     return acc;
 }
 
-// State values per point the batch loop copies on the stack for in-place
-// updates.
-inline constexpr std::uint32_t kMaxInlineState = 64;
-
 template <class M>
 struct Descriptors {
     static constexpr auto n_params = std::tuple_size_v<decltype(M::params)>;
@@ -363,10 +359,6 @@ struct Descriptors {
              (want_c && !b->wave_speed) || (want_t && !b->tangent)))
             return fail(err, -1, "update: a required batch array is null");
 
-        if (state_size > kMaxInlineState && b->state_end == b->state_start)
-            return fail(err, -1,
-                        "update: in-place update of more than 64 state values per point is not "
-                        "supported by this SDK; pass separate state arrays");
         const M &model = *reinterpret_cast<const M *>(inst);
         using RowMat6 = Eigen::Matrix<double, 6, 6, Eigen::RowMajor>;
         Mat6 tangent;
@@ -398,11 +390,12 @@ struct Descriptors {
                 in.density = b->density[k];
                 // With an in-place update the start state is copied aside
                 // before the model may overwrite it.
-                double state_copy[kMaxInlineState];
+                // (sized by the model's own state, known at compile time)
+                std::array<double, state_size == 0 ? 1 : state_size> state_copy;
                 if (q1 == q0 && state_size > 0) {
                     for (std::uint32_t j = 0; j < state_size; ++j)
                         state_copy[j] = q0[j];
-                    in.state = std::span<const double>(state_copy, state_size);
+                    in.state = std::span<const double>(state_copy.data(), state_size);
                 } else {
                     in.state = std::span<const double>(q0, state_size);
                 }
