@@ -326,7 +326,8 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
             } else {
                 fc.type = choose<FaceType>(c, {{"free", FaceType::free},
                                                {"fixed", FaceType::fixed},
-                                               {"slip", FaceType::slip}});
+                                               {"slip", FaceType::slip},
+                                               {"roller", FaceType::roller}});
             }
         }
     }

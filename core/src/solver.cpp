@@ -166,6 +166,23 @@ struct Simulation::Impl {
         return std::min(c / slab_width, n_slabs - 1);
     }
 
+    // sum_a w_a (x_a - x)^2 along axis d at coordinate x, m^2: the diagonal
+    // entry of APIC's D_p (x_a: the nodes' Greville points).
+    double affine_moment(int d, double x) const {
+        const std::size_t dd = static_cast<std::size_t>(d);
+        const double xi = (x - origin[dd]) * inv_h;
+        auto moment = [&](auto shape) {
+            using S = decltype(shape);
+            int base = 0;
+            double w[S::width], dw[S::width], gv[S::width], m2 = 0.0;
+            S::eval_bounded(xi, 0.0, cells[dd], base, w, dw, gv);
+            for (int k = 0; k < S::width; ++k)
+                m2 += w[k] * (gv[k] - xi) * (gv[k] - xi);
+            return m2 * h * h;
+        };
+        return sim.sc_.solver.shape == ShapeKind::bspline3 ? moment(BSpline3Shape{})
+                                                           : moment(BSpline2Shape{});
+    }
     void setup_grid();
     void bin_particles();
     void sort_particles();
@@ -283,7 +300,8 @@ inline bool kinematics_point(ParticleSet &s, std::size_t p, const double *Lg, do
 
 // ------------------------------------------------------------- stencils --
 
-// Weights and gradients of one particle's stencil.
+// Weights and gradients of one particle's stencil. The kernels see the
+// domain's bounds (eval_bounded): the B-splines are clamped at the faces.
 template <int D, class S, bool Offsets = true>
 struct Stencil {
     static constexpr int W = S::width;
@@ -291,18 +309,71 @@ struct Stencil {
     std::size_t idx[NN];
     double w[NN];
     double grad[NN][D];
-    double off[Offsets ? NN : 1][D]; // x_i - x_p, m
+    double off[Offsets ? NN : 1][D]; // x_i - x_p, m (x_i: the node's Greville point)
+    // 1 / D_p per axis, 1/m^2: D_p = sum_i w_ip (x_i - x_p)(x_i - x_p)^T is
+    // diagonal for a tensor-product kernel with linear precision (the cross
+    // terms factor into sum_a w_a (x_a - x_p) = 0), h^2/4 (quadratic) or
+    // h^2/3 (cubic) away from the faces (Jiang et al. 2015).
+    double dinv[D];
 
-    void eval(const Simulation::Impl &g, const ParticleSet &s, std::size_t p) {
-        int base[D];
-        double w1[D][W], dw1[D][W], xi[D];
+    // Almost every particle is away from the faces, where the uniform kernel
+    // holds. The hot kernels test this once per particle and run their
+    // per-particle body in two instantiations, the uniform one inline and
+    // the clamped one (docs/theory.md, "Boundaries") out of line: one
+    // branch inside the shared body costs 10 % in 3D through register
+    // allocation alone.
+    [[gnu::always_inline]] static bool interior(const Simulation::Impl &g, const ParticleSet &s,
+                                                std::size_t p) {
+        bool inner = true;
         for (int d = 0; d < D; ++d) {
             const std::size_t dd = static_cast<std::size_t>(d);
-            xi[d] = (s.x[dd][p] - g.origin[dd]) * g.inv_h + g.ghost;
-            S::eval(xi[d], s.lp[p], base[d], w1[d], dw1[d]);
-            for (int k = 0; k < W; ++k)
-                dw1[d][k] *= g.inv_h; // d/dx = d/dxi / h, once per axis
+            inner = inner && S::interior((s.x[dd][p] - g.origin[dd]) * g.inv_h, g.cells[dd]);
         }
+        return inner;
+    }
+
+    // Near == false requires interior(g, s, p).
+    template <bool Near>
+    [[gnu::always_inline]] void eval(const Simulation::Impl &g, const ParticleSet &s,
+                                     std::size_t p) {
+        int base[D];
+        double w1[D][W], dw1[D][W], g1[D][W], xi[D];
+        for (int d = 0; d < D; ++d) {
+            const std::size_t dd = static_cast<std::size_t>(d);
+            xi[d] = (s.x[dd][p] - g.origin[dd]) * g.inv_h;
+            if constexpr (Near)
+                S::eval_bounded(xi[d], s.lp[p], g.cells[dd], base[d], w1[d], dw1[d], g1[d]);
+            else
+                S::eval(xi[d], s.lp[p], base[d], w1[d], dw1[d]);
+            base[d] += g.ghost;
+            double m2 = 0.0;
+            for (int k = 0; k < W; ++k) {
+                dw1[d][k] *= g.inv_h; // d/dx = d/dxi / h, once per axis
+                if constexpr (Near && Offsets)
+                    m2 += w1[d][k] * (g1[d][k] - xi[d]) * (g1[d][k] - xi[d]) * g.h * g.h;
+            }
+            if constexpr (Offsets) dinv[d] = Near ? (m2 > 0.0 ? 1.0 / m2 : 0.0) : g.apic_dinv;
+        }
+        combine(g, base, w1, dw1, Near ? g1 : nullptr, xi);
+    }
+
+    void eval(const Simulation::Impl &g, const ParticleSet &s, std::size_t p) {
+        if (interior(g, s, p))
+            eval<false>(g, s, p);
+        else
+            eval<true>(g, s, p);
+    }
+
+    // Tensor products of the per-axis weights; node points g1 in cells (the
+    // nodes themselves when null).
+    [[gnu::always_inline]] void combine(const Simulation::Impl &g, const int *base,
+                                        const double (*w1)[W], const double (*dw1)[W],
+                                        const double (*g1)[W], const double *xi) {
+        double o1[D][W];
+        if constexpr (Offsets)
+            for (int d = 0; d < D; ++d)
+                for (int k = 0; k < W; ++k)
+                    o1[d][k] = ((g1 ? g1[d][k] : base[d] - g.ghost + k) - xi[d]) * g.h;
         int q = 0;
         if constexpr (D == 2) {
             for (int b = 0; b < W; ++b)
@@ -312,8 +383,8 @@ struct Stencil {
                     grad[q][0] = dw1[0][a] * w1[1][b];
                     grad[q][1] = w1[0][a] * dw1[1][b];
                     if constexpr (Offsets) {
-                        off[q][0] = (base[0] + a - xi[0]) * g.h;
-                        off[q][1] = (base[1] + b - xi[1]) * g.h;
+                        off[q][0] = o1[0][a];
+                        off[q][1] = o1[1][b];
                     }
                 }
         } else {
@@ -327,9 +398,9 @@ struct Stencil {
                         grad[q][1] = w1[0][a] * dw1[1][b] * w1[2][c];
                         grad[q][2] = w1[0][a] * w1[1][b] * dw1[2][c];
                         if constexpr (Offsets) {
-                            off[q][0] = (base[0] + a - xi[0]) * g.h;
-                            off[q][1] = (base[1] + b - xi[1]) * g.h;
-                            off[q][2] = (base[2] + c - xi[2]) * g.h;
+                            off[q][0] = o1[0][a];
+                            off[q][1] = o1[1][b];
+                            off[q][2] = o1[2][c];
                         }
                     }
         }
@@ -367,15 +438,15 @@ void p2g_pass(Simulation::Impl &g, const double *grav) {
     for (int colour = 0; colour < 2; ++colour) {
 #pragma omp parallel for schedule(dynamic, 1)
         for (int slab = colour; slab < g.n_slabs; slab += 2) {
-            Stencil<D, S, Affine> st;
+            using St = Stencil<D, S, Affine>;
             for (std::size_t si = 0; si < sets.size(); ++si) {
                 const ParticleSet &s = sets[si];
                 const std::uint32_t *ord = g.order[si].data();
                 const std::size_t b = g.slab_begin[si][static_cast<std::size_t>(slab)];
                 const std::size_t e = g.slab_begin[si][static_cast<std::size_t>(slab) + 1];
-                for (std::size_t k = b; k < e; ++k) {
-                    const std::size_t p = ord[k];
-                    st.eval(g, s, p);
+                auto body = [&](auto near, std::size_t p) __attribute__((always_inline)) {
+                    St st;
+                    st.template eval<decltype(near)::value>(g, s, p);
                     const double m = s.mass[p];
                     double vp[D], Cp[D][D] = {}, Vsig[D][D] = {}, fext[D] = {};
                     for (int d = 0; d < D; ++d)
@@ -400,7 +471,7 @@ void p2g_pass(Simulation::Impl &g, const double *grav) {
                         for (int d = 0; d < D; ++d)
                             fext[d] += m * grav[d];
                     }
-                    for (int q = 0; q < Stencil<D, S, Affine>::NN; ++q) {
+                    for (int q = 0; q < St::NN; ++q) {
                         double *rec = acc + Impl::kRec * st.idx[q];
                         const double mw = m * st.w[q];
                         if constexpr (Mass) rec[Impl::kM] += mw;
@@ -420,6 +491,16 @@ void p2g_pass(Simulation::Impl &g, const double *grav) {
                             }
                         }
                     }
+                };
+                auto near_face = [&](std::size_t p) __attribute__((noinline)) {
+                    body(std::true_type{}, p);
+                };
+                for (std::size_t k = b; k < e; ++k) {
+                    const std::size_t p = ord[k];
+                    if (St::interior(g, s, p)) [[likely]]
+                        body(std::false_type{}, p);
+                    else
+                        near_face(p);
                 }
             }
         }
@@ -466,15 +547,14 @@ void g2p_motion_pass(Simulation::Impl &g, double dt, double kin_dt) {
     const bool second = sc.solver.second_order_position;
     const double *vel = g.vel.data();
     const bool bspline = g.apic_dinv > 0.0;
+    using St = Stencil<D, S, Apic>;
     for (auto &s : sets) {
         const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(s.n);
-#pragma omp parallel for schedule(static)
-        for (std::ptrdiff_t pp = 0; pp < n; ++pp) {
-            const std::size_t p = static_cast<std::size_t>(pp);
-            Stencil<D, S, Apic> st;
-            st.eval(g, s, p);
+        auto body = [&](auto near, std::size_t p) __attribute__((always_inline)) {
+            St st;
+            st.template eval<decltype(near)::value>(g, s, p);
             double vpic[D] = {}, vold[D] = {}, L[D][D] = {}, B[D][D] = {}, step[D];
-            for (int q = 0; q < Stencil<D, S, Apic>::NN; ++q) {
+            for (int q = 0; q < St::NN; ++q) {
                 const double *rec = vel + Impl::kRec * st.idx[q];
                 for (int d = 0; d < D; ++d) {
                     const double a1 = rec[Impl::kV1 + static_cast<std::size_t>(d)];
@@ -512,7 +592,7 @@ void g2p_motion_pass(Simulation::Impl &g, double dt, double kin_dt) {
                 for (int r = 0; r < D; ++r)
                     for (int c = 0; c < D; ++c)
                         s.C[9 * p + static_cast<std::size_t>(3 * r + c)] =
-                            bspline ? B[r][c] * g.apic_dinv : L[r][c];
+                            bspline ? B[r][c] * st.dinv[c] : L[r][c];
             } else if (tr == Transfer::tpic) {
                 // Taylor transfer: the velocity gradient itself (eq. 29).
                 for (int r = 0; r < D; ++r)
@@ -541,6 +621,17 @@ void g2p_motion_pass(Simulation::Impl &g, double dt, double kin_dt) {
                 else
                     s.dx[static_cast<std::size_t>(d)][p] = step[d];
             }
+        };
+        auto near_face = [&](std::size_t p) __attribute__((noinline)) {
+            body(std::true_type{}, p);
+        };
+#pragma omp parallel for schedule(static)
+        for (std::ptrdiff_t pp = 0; pp < n; ++pp) {
+            const std::size_t p = static_cast<std::size_t>(pp);
+            if (St::interior(g, s, p)) [[likely]]
+                body(std::false_type{}, p);
+            else
+                near_face(p);
         }
     }
 }
@@ -631,7 +722,11 @@ void Simulation::Impl::setup_grid() {
     }
     acc.assign(kRec * n_nodes, 0.0);
     vel.assign(kRec * n_nodes, 0.0);
-    // Nodes on a face or beyond it (ghost layers) carry that face's condition.
+    // The nodes whose functions are non-zero at a face, and those beyond,
+    // carry that face's condition: for the clamped B-splines the layer just
+    // outside the face (the node on the face has a function vanishing there
+    // and stays free), for the tent-based kernels the face node and beyond.
+    const int layer = face_layer(sc.solver.shape);
     for (std::size_t i = 0; i < n_nodes; ++i) {
         const int ijk[3] = {static_cast<int>(i % static_cast<std::size_t>(nodes[0])),
                             static_cast<int>((i / static_cast<std::size_t>(nodes[0])) %
@@ -639,10 +734,10 @@ void Simulation::Impl::setup_grid() {
                             static_cast<int>(i / (static_cast<std::size_t>(nodes[0]) *
                                                   static_cast<std::size_t>(nodes[1])))};
         for (int d = 0; d < dim; ++d) {
-            if (ijk[d] <= ghost)
+            if (ijk[d] <= ghost - layer)
                 face_nodes[static_cast<std::size_t>(2 * d)].push_back(
                     static_cast<std::uint32_t>(i));
-            if (ijk[d] >= ghost + cells[static_cast<std::size_t>(d)])
+            if (ijk[d] >= ghost + cells[static_cast<std::size_t>(d)] + layer)
                 face_nodes[static_cast<std::size_t>(2 * d + 1)].push_back(
                     static_cast<std::uint32_t>(i));
         }
@@ -657,8 +752,12 @@ void Simulation::Impl::setup_grid() {
                                                  static_cast<std::size_t>(nodes[1])),
                                 static_cast<int>(i / (static_cast<std::size_t>(nodes[0]) *
                                                       static_cast<std::size_t>(nodes[1])))};
+            // A node stands for its Greville point (clamped B-splines).
             for (int d = 0; d < dim; ++d)
-                x[d] = origin[static_cast<std::size_t>(d)] + (ijk[d] - ghost) * h;
+                x[d] = origin[static_cast<std::size_t>(d)] +
+                       node_greville(sc.solver.shape, ijk[d] - ghost,
+                                     cells[static_cast<std::size_t>(d)]) *
+                           h;
             if (sc.nodal_velocities[k].box.contains(x, dim))
                 prescribed_nodes[k].push_back(static_cast<std::uint32_t>(i));
         }
@@ -779,9 +878,11 @@ void Simulation::Impl::reset_grid() {
     }
 }
 
-// Boundary conditions on a nodal velocity field (seed 004 step 2.4; Coulomb
-// friction as a velocity projection: the normal approach is stopped and the
-// tangential speed reduced by mu times the normal speed removed).
+// Boundary conditions on a nodal velocity field (seed 004 step 2.4). Contact
+// (slip, friction) is unilateral: a node moving away from the wall is left
+// alone; one moving into it loses its normal velocity and, with Coulomb
+// friction, its tangential speed is reduced by mu times the normal speed
+// removed (a velocity projection of the impulse).
 void Simulation::Impl::apply_bc(double *field, std::size_t offset, double t_eval) {
     const Scenario &sc = sim.sc_;
     auto V = [&](std::uint32_t i) { return field + kRec * i + offset; };
@@ -795,12 +896,13 @@ void Simulation::Impl::apply_bc(double *field, std::size_t offset, double t_eval
             if (fc.type == FaceType::fixed) {
                 for (int d = 0; d < dim; ++d)
                     v[d] = 0.0;
-            } else if (fc.type == FaceType::slip) {
+            } else if (fc.type == FaceType::roller) {
                 v[axis] = 0.0;
             } else {
                 const double vn = sign * v[axis];
                 if (vn <= 0.0) continue; // separating: no contact
                 v[axis] = 0.0;
+                if (fc.friction == 0.0) continue;
                 double vt2 = 0.0;
                 for (int d = 0; d < dim; ++d)
                     if (static_cast<std::size_t>(d) != axis) vt2 += v[d] * v[d];
@@ -1047,7 +1149,8 @@ void Simulation::Impl::kinematics_and_update(double dt, double t) {
 void Simulation::Impl::finish_step() {
     const Scenario &sc = sim.sc_;
     double speed = 0.0, disorder = 0.0;
-    long outside = 0, moved = 0;
+    long outside = 0, moved = 0, held = 0;
+    double depth = 0.0;
     slab_index.resize(sim.sets_.size());
     for (std::size_t si = 0; si < sim.sets_.size(); ++si) {
         ParticleSet &s = sim.sets_[si];
@@ -1061,16 +1164,40 @@ void Simulation::Impl::finish_step() {
         cell.resize(s.n);
         const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(s.n);
         const int D = dim;
-#pragma omp parallel for schedule(static) reduction(max : speed) reduction(+ : outside, moved)
+        // A closed face is impenetrable: the grid's normal velocity at it is
+        // zero (clamped basis), so the motion computed from the grid cannot
+        // carry a particle through it by more than the round-off of the
+        // position sum (or a step above the stability limit); what does is
+        // put back onto the face (and counted), so that "outside" means
+        // through a free face only.
+        double lo[3], hi[3];
+        bool hold_lo[3] = {false, false, false}, hold_hi[3] = {false, false, false};
+        for (int d = 0; d < D; ++d) {
+            const std::size_t dd = static_cast<std::size_t>(d);
+            lo[d] = origin[dd];
+            hi[d] = origin[dd] + sc.size[dd];
+            hold_lo[d] = sc.faces[2 * dd].type != FaceType::free;
+            hold_hi[d] = sc.faces[2 * dd + 1].type != FaceType::free;
+        }
+#pragma omp parallel for schedule(static) reduction(max : speed, depth) reduction(+ : outside, moved, held)
         for (std::ptrdiff_t pp = 0; pp < n; ++pp) {
             const std::size_t p = static_cast<std::size_t>(pp);
             bool in = true;
             double v2 = 0.0;
             for (int d = 0; d < D; ++d) {
                 const std::size_t dd = static_cast<std::size_t>(d);
-                const double x = positions_applied ? s.x[dd][p] : s.x[dd][p] + s.dx[dd][p];
+                double x = positions_applied ? s.x[dd][p] : s.x[dd][p] + s.dx[dd][p];
+                if (hold_lo[d] && x < lo[d]) {
+                    depth = std::max(depth, lo[d] - x);
+                    x = lo[d];
+                    ++held;
+                } else if (hold_hi[d] && x > hi[d]) {
+                    depth = std::max(depth, x - hi[d]);
+                    x = hi[d];
+                    ++held;
+                }
                 s.x[dd][p] = x;
-                in = in && x >= origin[dd] && x <= origin[dd] + sc.size[dd];
+                in = in && x >= lo[d] && x <= hi[d];
                 v2 += s.v[dd][p] * s.v[dd][p];
             }
             outside += in ? 0 : 1;
@@ -1100,6 +1227,8 @@ void Simulation::Impl::finish_step() {
     }
     max_speed = speed;
     out_of_order = disorder;
+    sim.held_at_faces_ += held;
+    sim.held_depth_ = std::max(sim.held_depth_, depth);
     positions_applied = false;
     slabs_changed = moved > 0;
     if (outside > 0) remove_or_report_leaving();
@@ -1488,12 +1617,13 @@ Diagnostics Simulation::diagnostics() const {
     dg.dt = last_dt_;
     dg.removed = removed_;
     dg.cut_steps = cut_steps_;
+    dg.held_at_faces = held_at_faces_;
+    dg.held_depth = held_depth_;
     const int D = sc_.dim;
     // The affine velocity field carries angular momentum too: for the
-    // B-splines, sum_i x_i x p_i gains m D eps:C with D = h^2/4 (quadratic)
-    // or h^2/3 (cubic) (Jiang et al. 2015).
+    // B-splines, sum_i x_i x p_i gains m eps:(C D_p) with D_p = h^2/4
+    // (quadratic) or h^2/3 (cubic) away from the faces (Jiang et al. 2015).
     const bool affine = sc_.solver.transfer != Transfer::flip && impl_->apic_dinv > 0.0;
-    const double Dcoef = affine ? 1.0 / impl_->apic_dinv : 0.0;
     for (const auto &s : sets_) {
         dg.particles += s.n;
         for (std::size_t p = 0; p < s.n; ++p) {
@@ -1510,12 +1640,18 @@ Diagnostics Simulation::diagnostics() const {
             dg.strain_energy += s.work[p];
             static const double no_affine[9] = {};
             const double *C = s.has_C ? &s.C[9 * p] : no_affine;
-            dg.angular_momentum[2] += m * (x[0] * v[1] - x[1] * v[0]) + m * Dcoef * (C[3] - C[1]);
+            double Dp[3] = {0, 0, 0}; // D_p per axis (diagonal), m^2
+            if (affine)
+                for (int d = 0; d < D; ++d)
+                    Dp[d] = impl_->affine_moment(d, x[d]);
+            // sum_i x_i x m w_ip C (x_i - x_p) = x_p x m v_p + m eps_kab C_bc D_ac.
+            dg.angular_momentum[2] +=
+                m * (x[0] * v[1] - x[1] * v[0]) + m * (Dp[0] * C[3] - Dp[1] * C[1]);
             if (D == 3) {
                 dg.angular_momentum[0] +=
-                    m * (x[1] * v[2] - x[2] * v[1]) + m * Dcoef * (C[7] - C[5]);
+                    m * (x[1] * v[2] - x[2] * v[1]) + m * (Dp[1] * C[7] - Dp[2] * C[5]);
                 dg.angular_momentum[1] +=
-                    m * (x[2] * v[0] - x[0] * v[2]) + m * Dcoef * (C[2] - C[6]);
+                    m * (x[2] * v[0] - x[0] * v[2]) + m * (Dp[2] * C[2] - Dp[0] * C[6]);
             }
         }
     }

@@ -9,6 +9,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <random>
 
 namespace {
@@ -73,6 +74,115 @@ TEST(ShapeFunctions, QuadraticBSplineHasAllProperties) {
 }
 TEST(ShapeFunctions, CubicBSplineHasAllProperties) {
     check_kernel<talus::BSpline3Shape>(0.0, 1.0 / 3.0);
+}
+
+// The clamped B-splines on a bounded domain of n cells (eval_bounded), at
+// many points including the faces and points near them: partition of
+// unity, linear precision with the Greville points (sum N_k g_k = xi),
+// gradient consistency, non-negativity, derivatives that match central
+// differences of the values (1e-6: the O(e^2) = 1e-12 truncation divided by
+// e = 1e-6 and the values' round-off 1e-16 / 1e-6), the uniform kernel away
+// from the faces, and at each face exactly one non-zero function, equal to
+// 1, on the node one layer outside the face.
+template <class S>
+void check_bounded(int n) {
+    std::mt19937_64 rng(11);
+    std::uniform_real_distribution<double> u(0.0, static_cast<double>(n));
+    for (int trial = 0; trial < 4000; ++trial) {
+        double xi = u(rng);
+        if (trial < 4)
+            xi = std::array<double, 4>{0.0, static_cast<double>(n), 1e-14, n - 1e-14}[trial];
+        int base = 0;
+        double w[S::width], dw[S::width], g[S::width];
+        S::eval_bounded(xi, 0.0, n, base, w, dw, g);
+        double sw = 0, swg = 0, sdw = 0, sdwg = 0;
+        for (int k = 0; k < S::width; ++k) {
+            EXPECT_GE(w[k], 0.0) << "xi " << xi;
+            sw += w[k];
+            swg += w[k] * g[k];
+            sdw += dw[k];
+            sdwg += dw[k] * g[k];
+        }
+        EXPECT_NEAR(sw, 1.0, 1e-13) << "partition of unity at " << xi;
+        EXPECT_NEAR(swg, xi, 1e-13 * n) << "linear precision at " << xi;
+        EXPECT_NEAR(sdw, 0.0, 1e-12) << "gradient sum at " << xi;
+        EXPECT_NEAR(sdwg, 1.0, 1e-12 * n) << "gradient consistency at " << xi;
+        const double e = 1e-6;
+        if (xi > e && xi < n - e) {
+            int b1 = 0, b2 = 0;
+            double w1[S::width], w2[S::width], d1[S::width], d2[S::width], g1[S::width],
+                g2[S::width];
+            S::eval_bounded(xi - e, 0.0, n, b1, w1, d1, g1);
+            S::eval_bounded(xi + e, 0.0, n, b2, w2, d2, g2);
+            if (b1 == base && b2 == base) {
+                for (int k = 0; k < S::width; ++k)
+                    EXPECT_NEAR(dw[k], (w2[k] - w1[k]) / (2 * e), 1e-6) << "xi " << xi;
+            }
+        }
+        if (xi >= 3.0 && xi <= n - 3.0) { // far from both faces: the uniform kernel
+            int bu = 0;
+            double wu[S::width], du[S::width];
+            S::eval(xi, 0.0, bu, wu, du);
+            EXPECT_EQ(bu, base);
+            for (int k = 0; k < S::width; ++k) {
+                EXPECT_EQ(wu[k], w[k]);
+                EXPECT_EQ(g[k], base + k);
+            }
+        }
+        if (xi == 0.0 || xi == n) {
+            const int face_node = xi == 0.0 ? -1 : n + 1;
+            for (int k = 0; k < S::width; ++k) {
+                EXPECT_DOUBLE_EQ(w[k], base + k == face_node ? 1.0 : 0.0) << "face at " << xi;
+                if (base + k == face_node) {
+                    EXPECT_DOUBLE_EQ(g[k], xi);
+                }
+            }
+        }
+    }
+}
+
+TEST(ShapeFunctions, ClampedQuadraticBSplineOnABoundedDomain) {
+    for (int n : {1, 2, 3, 5, 40})
+        check_bounded<talus::BSpline2Shape>(n);
+}
+TEST(ShapeFunctions, ClampedCubicBSplineOnABoundedDomain) {
+    for (int n : {1, 2, 3, 5, 40})
+        check_bounded<talus::BSpline3Shape>(n);
+}
+
+// The clamped quadratic basis next to the face x = 0 against its closed form
+// on the knots {0, 0, 0, 1/2, 3/2, 5/2, ...}, worked out by hand from the
+// Cox-de Boor recursion: node -1: (1 - 2u)^2 on [0, 1/2]; node 0: 4u -
+// 16u^2/3 on [0, 1/2], 2(3/2 - u)^2/3 on [1/2, 3/2]; node 1: 4u^2/3 on [0,
+// 1/2], u(3/2 - u)/(3/2) + (5/2 - u)(u - 1/2)/2 on [1/2, 3/2]. Greville
+// points 0, 1/4, 1.
+TEST(ShapeFunctions, ClampedQuadraticBSplineValues) {
+    int base = 0;
+    double w[3], dw[3], g[3];
+    talus::BSpline2Shape::eval_bounded(0.25, 0.0, 10, base, w, dw, g);
+    EXPECT_EQ(base, -1);
+    EXPECT_DOUBLE_EQ(w[0], 0.25);
+    EXPECT_DOUBLE_EQ(w[1], 1.0 - 1.0 / 3.0);
+    EXPECT_DOUBLE_EQ(w[2], 1.0 / 12.0);
+    EXPECT_DOUBLE_EQ(dw[0], -2.0);              // -4 (1 - 2u)
+    EXPECT_DOUBLE_EQ(dw[1], 4.0 - 32.0 / 12.0); // 4 - 32u/3
+    EXPECT_DOUBLE_EQ(g[0], 0.0);
+    EXPECT_DOUBLE_EQ(g[1], 0.25);
+    EXPECT_DOUBLE_EQ(g[2], 1.0);
+    talus::BSpline2Shape::eval_bounded(1.0, 0.0, 10, base, w, dw, g);
+    EXPECT_EQ(base, 0);
+    EXPECT_DOUBLE_EQ(w[0], 2.0 / 3.0 * 0.25);
+    EXPECT_DOUBLE_EQ(w[1], 1.0 / 3.0 + 0.375);
+    EXPECT_DOUBLE_EQ(w[2], 0.125); // node 2 is uniform: (3/2 - 1)^2 / 2
+    // The upper face mirrors the lower one.
+    talus::BSpline2Shape::eval_bounded(9.75, 0.0, 10, base, w, dw, g);
+    EXPECT_EQ(base, 9);
+    EXPECT_DOUBLE_EQ(w[2], 0.25);
+    EXPECT_DOUBLE_EQ(w[1], 1.0 - 1.0 / 3.0);
+    EXPECT_DOUBLE_EQ(w[0], 1.0 / 12.0);
+    EXPECT_DOUBLE_EQ(dw[2], 2.0);
+    EXPECT_DOUBLE_EQ(g[2], 10.0);
+    EXPECT_DOUBLE_EQ(g[1], 9.75);
 }
 
 // uGIMP is continuous with a continuous gradient: compare across the

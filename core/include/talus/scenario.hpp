@@ -73,10 +73,16 @@ struct ComponentFunctions {
     std::array<std::optional<PiecewiseLinear>, 3> c;
 };
 
-enum class FaceType { free, fixed, slip, friction };
+// What a face does to the material at it (docs/scenario-reference.md):
+//   fixed:    no motion at all (bilateral, sticking)
+//   roller:   no normal motion, either way (bilateral), tangential free
+//   slip:     frictionless contact: the material cannot enter the wall but
+//             may leave it (unilateral), tangential free
+//   friction: slip plus Coulomb friction while in contact
+enum class FaceType { free, fixed, roller, slip, friction };
 struct FaceCondition {
     FaceType type = FaceType::free;
-    double friction = 0.0; // Coulomb coefficient, with FaceType::friction
+    double friction = 0.0; // Coulomb coefficient, with FaceType::friction (0 for slip)
 };
 
 struct NodalVelocity { // prescribed grid velocity in a box

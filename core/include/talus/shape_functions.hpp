@@ -7,8 +7,13 @@
 // first node of the stencil (`base`) and, for the `width` nodes base ..
 // base + width - 1, the weights N(xi - k) and their derivatives dN/dxi (to be
 // divided by h for a spatial gradient).
+//
+// eval_bounded() does the same on a domain of n cells, 0 <= xi <= n. For the
+// B-splines it uses the clamped (open-knot) basis there: docs/theory.md,
+// "Boundaries".
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <string_view>
 
@@ -24,6 +29,59 @@ inline double fast_floor(double x) {
 
 enum class ShapeKind { linear, gimp, bspline2, bspline3 };
 
+// One B-spline basis function of degree P (P <= 3) with knots t[0..P+1],
+// non-decreasing, and its derivative, at u (Cox-de Boor recursion, de Boor
+// 1978, ch. IX; 0/0 = 0 for repeated knots). Intervals are half-open
+// [t_j, t_j+1) except at u == end, the right end of the domain, which
+// belongs to the last non-empty interval ending there.
+template <int P>
+inline double bspline_basis(const double *t, double u, double end, double &dN) {
+    double N[P + 1];
+    for (int j = 0; j <= P; ++j) {
+        const bool inside = t[j] <= u && u < t[j + 1];
+        const bool right_end = u == end && t[j + 1] == end && t[j] < t[j + 1];
+        N[j] = inside || right_end ? 1.0 : 0.0;
+    }
+    auto ratio = [](double a, double b) { return b > 0.0 ? a / b : 0.0; };
+    for (int k = 1; k <= P; ++k) {
+        if (k == P) dN = P * (ratio(N[0], t[P] - t[0]) - ratio(N[1], t[P + 1] - t[1]));
+        for (int j = 0; j <= P - k; ++j)
+            N[j] = ratio(u - t[j], t[j + k] - t[j]) * N[j] +
+                   ratio(t[j + k + 1] - u, t[j + k + 1] - t[j + 1]) * N[j + 1];
+    }
+    if constexpr (P == 0) dN = 0.0;
+    return N[0];
+}
+
+// The clamped node-centred B-splines of degree P on a domain of n cells.
+// Node k's function has the knots of the uniform node-centred spline, k - (P
+// + 1)/2 ... k + (P + 1)/2, each clamped into [0, n]. This is the open-knot
+// basis of the same spline space restricted to the domain (de Boor 1978;
+// Piegl & Tiller 1997, sec. 2.2): partition of unity and linear completeness
+// hold, and at a face exactly one function is non-zero (it equals 1), the
+// one of the node half a support outside (k = -1 and k = n + 1), so a
+// condition on that node's velocity is the condition at the face itself.
+// Nodes further out have identically zero functions. Steffen, Kirby &
+// Berzins (2008, IJNME 76:922) modify the quadratic B-spline at a boundary
+// for the same reason. Also returns each node's Greville abscissa (the mean
+// of its P inner knots), the point the node's coefficient represents
+// (sum_k g_k N_k(u) = u), for the affine transfers and node selection.
+template <int P, int W>
+inline void clamped_bsplines(double u, int n, int base, double *w, double *dw, double *g) {
+    constexpr double half = 0.5 * (P + 1);
+    for (int a = 0; a < W; ++a) {
+        const int k = base + a;
+        double t[P + 2];
+        for (int j = 0; j < P + 2; ++j)
+            t[j] = std::clamp(k - half + j, 0.0, static_cast<double>(n));
+        w[a] = bspline_basis<P>(t, u, static_cast<double>(n), dw[a]);
+        double s = 0.0;
+        for (int j = 1; j <= P; ++j)
+            s += t[j];
+        g[a] = s / P;
+    }
+}
+
 // Linear ("tent") functions, the original MPM of Sulsky et al. (1994).
 struct LinearShape {
     static constexpr int width = 2;
@@ -35,6 +93,16 @@ struct LinearShape {
         w[1] = r;
         dw[0] = -1.0;
         dw[1] = 1.0;
+    }
+    // Where eval() is also eval_bounded() (the kernels' hot paths test this
+    // once per particle and leave the rest out of line).
+    static constexpr bool interior(double /*xi*/, int /*n*/) { return true; }
+    // Already interpolating at the faces: the node on a face carries it.
+    static inline void eval_bounded(double xi, double lp, int /*n*/, int &base, double *w,
+                                    double *dw, double *g) {
+        eval(xi, lp, base, w, dw);
+        g[0] = base;
+        g[1] = base + 1;
     }
 };
 
@@ -67,6 +135,15 @@ struct GimpShape {
             dw[k] = dn(r, lp);
         }
     }
+    static constexpr bool interior(double /*xi*/, int /*n*/) { return true; }
+    // Unchanged at the faces: a particle's domain may reach into the ghost
+    // layer; the face and ghost nodes carry the face's condition.
+    static inline void eval_bounded(double xi, double lp, int /*n*/, int &base, double *w,
+                                    double *dw, double *g) {
+        eval(xi, lp, base, w, dw);
+        for (int k = 0; k < 3; ++k)
+            g[k] = base + k;
+    }
 };
 
 // Quadratic B-spline (Steffen et al. 2008; seed 000 eqs. 24-25), node-centred.
@@ -85,6 +162,22 @@ struct BSpline2Shape {
         dw[0] = -a;
         dw[1] = -2.0 * r1;
         dw[2] = c;
+    }
+    // The stencil base .. base + 2 (base = floor(xi - 1/2)) within nodes 2 ..
+    // n - 2, which have no clamped knot.
+    static bool interior(double xi, int n) { return xi >= 2.5 && xi < n - 2.5; }
+    // Nodes 2 .. n - 2 have no clamped knot: the uniform formulas hold
+    // where the whole stencil lies among them, which is almost everywhere.
+    static inline void eval_bounded(double xi, double lp, int n, int &base, double *w, double *dw,
+                                    double *g) {
+        xi = std::clamp(xi, 0.0, static_cast<double>(n));
+        eval(xi, lp, base, w, dw);
+        if (base >= 2 && base + width - 1 <= n - 2) {
+            for (int k = 0; k < width; ++k)
+                g[k] = base + k;
+            return;
+        }
+        clamped_bsplines<2, width>(xi, n, base, w, dw, g);
     }
 };
 
@@ -106,12 +199,48 @@ struct BSpline3Shape {
         dw[2] = 2.0 * u - 1.5 * u * u;
         dw[3] = 0.5 * t * t;
     }
+    // The stencil base .. base + 3 (base = floor(xi) - 1) within nodes 2 ..
+    // n - 2.
+    static bool interior(double xi, int n) { return xi >= 3.0 && xi < n - 3.0; }
+    // Nodes 2 .. n - 2 have no clamped knot: the uniform formulas hold
+    // where the whole stencil lies among them, which is almost everywhere.
+    static inline void eval_bounded(double xi, double lp, int n, int &base, double *w, double *dw,
+                                    double *g) {
+        xi = std::clamp(xi, 0.0, static_cast<double>(n));
+        eval(xi, lp, base, w, dw);
+        if (base >= 2 && base + width - 1 <= n - 2) {
+            for (int k = 0; k < width; ++k)
+                g[k] = base + k;
+            return;
+        }
+        clamped_bsplines<3, width>(xi, n, base, w, dw, g);
+    }
 };
 
 // Nodes of the stencil beyond the domain on each side: the grid carries this
 // many ghost layers so that every kernel keeps partition of unity near a
 // boundary.
 inline constexpr int kGhostLayers = 2;
+
+// The point node k stands for on a domain of n cells, in cells: the node
+// itself, or for the clamped B-splines its Greville abscissa (which moves
+// only for the nodes next to a face).
+inline double node_greville(ShapeKind kind, int k, int n) {
+    if (kind != ShapeKind::bspline2 && kind != ShapeKind::bspline3) return k;
+    const int P = kind == ShapeKind::bspline2 ? 2 : 3;
+    double s = 0.0;
+    for (int j = 1; j <= P; ++j)
+        s += std::clamp(k - 0.5 * (P + 1) + j, 0.0, static_cast<double>(n));
+    return s / P;
+}
+
+// The layer of nodes, counted outward from a face (0: the node on the face),
+// whose function is the one non-zero at the face: a face condition applies
+// to it and to the layers beyond (whose functions vanish in the domain or,
+// for GIMP, reach it only through a particle's own extent).
+constexpr int face_layer(ShapeKind k) {
+    return k == ShapeKind::bspline2 || k == ShapeKind::bspline3 ? 1 : 0;
+}
 
 constexpr std::string_view shape_name(ShapeKind k) {
     switch (k) {

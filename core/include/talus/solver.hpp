@@ -61,6 +61,10 @@ struct Diagnostics {
     std::size_t particles = 0;
     long removed = 0;   // particles removed after leaving the grid
     long cut_steps = 0; // plugin cut-step requests honoured by sub-stepping
+    // Particle positions put back onto a closed face they had crossed (by
+    // round-off, or a time step above the stability limit), summed over steps
+    long held_at_faces = 0;
+    double held_depth = 0.0; // the deepest such crossing, m
 };
 
 struct SolverOptions {
@@ -121,6 +125,8 @@ class Simulation {
     long step_ = 0;
     long removed_ = 0;
     long cut_steps_ = 0;
+    long held_at_faces_ = 0;
+    double held_depth_ = 0.0;
     bool warned_dt_ = false;
     std::vector<std::string> warnings_;
     friend struct Impl;
