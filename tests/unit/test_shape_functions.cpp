@@ -81,9 +81,10 @@ TEST(ShapeFunctions, CubicBSplineHasAllProperties) {
 // unity, linear precision with the Greville points (sum N_k g_k = xi),
 // gradient consistency, non-negativity, derivatives that match central
 // differences of the values (1e-6: the O(e^2) = 1e-12 truncation divided by
-// e = 1e-6 and the values' round-off 1e-16 / 1e-6), the uniform kernel away
-// from the faces, and at each face exactly one non-zero function, equal to
-// 1, on the node one layer outside the face.
+// e = 1e-6 and the values' round-off 1e-16 / 1e-6), the uniform kernel
+// exactly where interior() says so (the solver's fast path relies on it; to
+// the recursion's round-off, 1e-15) and not elsewhere, and at each face exactly one non-zero
+// function, equal to 1, on the node one layer outside the face.
 template <class S>
 void check_bounded(int n) {
     std::mt19937_64 rng(11);
@@ -118,6 +119,28 @@ void check_bounded(int n) {
                 for (int k = 0; k < S::width; ++k)
                     EXPECT_NEAR(dw[k], (w2[k] - w1[k]) / (2 * e), 1e-6) << "xi " << xi;
             }
+        }
+        if (S::interior(xi, n)) { // where the solver uses the uniform kernel, it is exact
+            int bu = 0;
+            double wu[S::width], du[S::width];
+            S::eval(xi, 0.0, bu, wu, du);
+            EXPECT_EQ(bu, base);
+            for (int k = 0; k < S::width; ++k) {
+                EXPECT_NEAR(wu[k], w[k], 1e-15) << "xi " << xi;
+                EXPECT_NEAR(du[k], dw[k], 1e-14) << "xi " << xi;
+                EXPECT_EQ(g[k], base + k);
+            }
+        } else if (!S::interior(xi - 0.1, n) && !S::interior(xi + 0.1, n) && n >= 4) {
+            // and only there (0.1 cells off the region's edge, where the
+            // C1 (C2 for the cubic) match makes the difference vanish
+            // smoothly, like (0.1)^3 / 6 ~ 2e-4 for the cubic)
+            int bu = 0;
+            double wu[S::width], du[S::width];
+            S::eval(xi, 0.0, bu, wu, du);
+            double diff = 0.0;
+            for (int k = 0; k < S::width; ++k)
+                diff = std::max(diff, std::abs(wu[k] - w[k]));
+            EXPECT_GT(diff, 1e-5) << "xi " << xi << ": uniform outside interior()";
         }
         if (xi >= 3.0 && xi <= n - 3.0) { // far from both faces: the uniform kernel
             int bu = 0;

@@ -163,9 +163,12 @@ struct BSpline2Shape {
         dw[1] = -2.0 * r1;
         dw[2] = c;
     }
-    // The stencil base .. base + 2 (base = floor(xi - 1/2)) within nodes 2 ..
-    // n - 2, which have no clamped knot.
-    static bool interior(double xi, int n) { return xi >= 2.5 && xi < n - 2.5; }
+    // Where the clamped functions are the uniform ones: a B-spline's piece
+    // on its last knot interval, (t_p+1 - x)^p / prod_j=1..p (t_p+1 - t_j),
+    // depends on its inner knots only, and node 1's (1/2, 3/2) are not
+    // clamped; the first pieces mirror this at the upper face. So only
+    // 0 <= xi < 3/2 (and n - 3/2 <= xi <= n) differ (tested).
+    static bool interior(double xi, int n) { return xi >= 1.5 && xi < n - 1.5; }
     // Nodes 2 .. n - 2 have no clamped knot: the uniform formulas hold
     // where the whole stencil lies among them, which is almost everywhere.
     static inline void eval_bounded(double xi, double lp, int n, int &base, double *w, double *dw,
@@ -199,9 +202,9 @@ struct BSpline3Shape {
         dw[2] = 2.0 * u - 1.5 * u * u;
         dw[3] = 0.5 * t * t;
     }
-    // The stencil base .. base + 3 (base = floor(xi) - 1) within nodes 2 ..
-    // n - 2.
-    static bool interior(double xi, int n) { return xi >= 3.0 && xi < n - 3.0; }
+    // As for the quadratic: node 1's inner knots (0, 1, 2) are unclamped, so
+    // only 0 <= xi < 2 (and n - 2 <= xi <= n) differ (tested).
+    static bool interior(double xi, int n) { return xi >= 2.0 && xi < n - 2.0; }
     // Nodes 2 .. n - 2 have no clamped knot: the uniform formulas hold
     // where the whole stencil lies among them, which is almost everywhere.
     static inline void eval_bounded(double xi, double lp, int n, int &base, double *w, double *dw,
