@@ -360,16 +360,25 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     write_outputs();
     const double end = sc.end_time;
     const double every = sc.output.every > 0.0 ? sc.output.every : end;
-    double next = std::min(every, end);
+    // Output k is due at k * every; it is written after the first step that
+    // reaches that time (the file and the CSV rows carry the actual time).
+    // Steps are never shortened for an output, so the trajectory does not
+    // depend on the cadence; only the last step is cut to end on `end`.
+    long next_k = 1;
+    auto due = [&] { return std::min(static_cast<double>(next_k) * every, end); };
     // Times within a millionth of a step of a target count as reaching it.
     while (sim.time() < end * (1.0 - 1e-12)) {
-        sim.step(next - sim.time());
+        sim.step(end - sim.time());
         particle_steps += static_cast<long>(sim.particle_count());
         for (; warnings_shown < sim.warnings().size(); ++warnings_shown)
             log << "talus: warning: " << sim.warnings()[warnings_shown] << '\n';
-        if (sim.time() >= next - 1e-9 * sim.last_dt()) {
+        if (sim.time() >= due() - 1e-9 * sim.last_dt()) {
             write_outputs();
-            next = std::min(next + every, end);
+            // One file per output time reached, even if a long step passed
+            // several of them.
+            while (due() <= sim.time() + 1e-9 * sim.last_dt() && due() < end)
+                ++next_k;
+            if (sim.time() >= end * (1.0 - 1e-12)) break;
         }
         if (opt.progress && elapsed() - last_progress > 0.5) {
             last_progress = elapsed();

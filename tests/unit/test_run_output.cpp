@@ -1,0 +1,61 @@
+// What `talus run` writes, against the solver it drives.
+#include "solver_helpers.hpp"
+
+#include <talus/run.hpp>
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <sstream>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// The last row of diagnostics.csv of a run of `yaml` into `dir`.
+std::vector<double> last_row(const std::string &yaml, const fs::path &dir) {
+    auto s = talus::test::sim_from_text(yaml);
+    talus::RunOptions opt;
+    opt.output_dir = dir;
+    opt.force = true;
+    std::ostringstream log;
+    talus::run_scenario(s->scenario, opt, log);
+    return talus::test::read_numeric_csv(dir / "diagnostics.csv").back();
+}
+
+} // namespace
+
+// Point 15 of the "no silent wrong results" work: steps were shortened to
+// land on output times, so the trajectory changed with output.every. Two
+// cadences (one output per step or so, and none but the end) must give the
+// same state at the end, bit for bit: same steps, same arithmetic.
+TEST(RunOutput, ResultsDoNotDependOnTheOutputCadence) {
+    const std::string base =
+        "talus: 1\ndimension: 2\ngrid: {origin: [0, 0], size: [1, 0.5], cell: 0.025}\n"
+        "materials:\n  m: {model: linear_elastic, density: 1000, youngs_modulus: 1.0e6, "
+        "poisson_ratio: 0.3}\n"
+        "groups:\n  b: {material: m, velocity: [0.5, 0], shape: {box: {min: [0.2, 0.1], max: "
+        "[0.5, 0.3]}}}\n"
+        "boundaries: {y-: {friction: 0.3}}\ngravity: [0, -9.81]\ntime: {end: 0.05}\n";
+    const fs::path tmp = fs::temp_directory_path() / "talus_cadence_test";
+    const auto a = last_row(base + "output: {every: 0.0003, vtk: false}\n", tmp / "a");
+    const auto b = last_row(base + "output: {every: 0.05, vtk: false}\n", tmp / "b");
+    ASSERT_EQ(a.size(), b.size());
+    EXPECT_EQ(a[0], b[0]); // the same number of steps
+    EXPECT_EQ(a[1], 0.05); // ending on the end time exactly
+    for (std::size_t k = 0; k < a.size(); ++k)
+        EXPECT_EQ(a[k], b[k]) << "column " << k;
+    // The fine cadence wrote a row after the first step reaching each
+    // output time k * 0.0003: the row's time t satisfies 0 <= t - k * 0.0003
+    // < dt (the step that reached it), and times increase. (1e-12: the
+    // round-off of summing ~200 steps of 2.5e-4 s.)
+    const auto rows = talus::test::read_numeric_csv(tmp / "a" / "diagnostics.csv");
+    EXPECT_GT(rows.size(), 100u);
+    for (std::size_t r = 1; r + 1 < rows.size(); ++r) {
+        EXPECT_GT(rows[r][1], rows[r - 1][1]);
+        const double due = std::floor(rows[r][1] / 0.0003 + 1e-9) * 0.0003;
+        EXPECT_GE(rows[r][1] - due, -1e-12) << "row " << r;
+        EXPECT_LT(rows[r][1] - due, rows[r][2] + 1e-12) << "row " << r;
+    }
+    fs::remove_all(tmp);
+}
