@@ -251,7 +251,7 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     }
     const char *axes = "xyz";
     std::ofstream diag(dir / "diagnostics.csv"), prob;
-    diag << "step,time,dt,mass,momentum_x,momentum_y,momentum_z,kinetic_energy,strain_energy,"
+    diag << "step,time,dt,mass,momentum_x,momentum_y,momentum_z,kinetic_energy,stress_work,"
             "angular_momentum_x,angular_momentum_y,angular_momentum_z,particles,removed,cut_steps,"
             "held_at_faces\n";
     if (!probes.empty()) {
@@ -281,7 +281,7 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
                             "17g},{:.17g},{:.17g},"
                             "{},{},{},{}\n",
                             dg.step, dg.time, dg.dt, dg.mass, dg.momentum[0], dg.momentum[1],
-                            dg.momentum[2], dg.kinetic_energy, dg.strain_energy,
+                            dg.momentum[2], dg.kinetic_energy, dg.stress_work,
                             dg.angular_momentum[0], dg.angular_momentum[1], dg.angular_momentum[2],
                             dg.particles, dg.removed, dg.cut_steps, dg.held_at_faces);
         diag.flush();

@@ -214,7 +214,7 @@ struct Simulation::Impl {
     std::size_t inverted_particle = 0;
     std::string inversion_message(const ParticleSet &s, std::size_t p, double t) const {
         return fmt::format(
-            "step {} (t = {:.6g} s): particle {} of group '{}' inverted (J = {:.3g}): the "
+            "step {} (t = {:.6g} s): particle {} of group '{}' inverted (J = {:.3g} <= 0): the "
             "deformation in one step is too large; reduce cfl or dt",
             sim.step_ + 1, t, s.id[p], sim.sc_.groups[static_cast<std::size_t>(s.group[p])].name,
             s.J[p]);
@@ -282,8 +282,10 @@ inline bool kinematics_point(ParticleSet &s, std::size_t p, const double *Lg, do
         J = F1[0] * (F1[4] * F1[8] - F1[5] * F1[7]) - F1[1] * (F1[3] * F1[8] - F1[5] * F1[6]) +
             F1[2] * (F1[3] * F1[7] - F1[4] * F1[6]);
     }
-    if (!(J > 0.0)) return false;
+    // A failing J is kept too: the error message and the failure output
+    // show the value that failed, not the last valid one.
     s.J[p] = J;
+    if (!(J > 0.0)) return false;
     s.rho[p] = s.rho0 / J;
     double *de = &s.de[6 * p];
     de[0] = dt * L[0];
@@ -1637,7 +1639,7 @@ Diagnostics Simulation::diagnostics() const {
             for (int d = 0; d < 3; ++d)
                 dg.momentum[static_cast<std::size_t>(d)] += m * v[d];
             dg.kinetic_energy += 0.5 * m * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-            dg.strain_energy += s.work[p];
+            dg.stress_work += s.work[p];
             static const double no_affine[9] = {};
             const double *C = s.has_C ? &s.C[9 * p] : no_affine;
             double Dp[3] = {0, 0, 0}; // D_p per axis (diagonal), m^2

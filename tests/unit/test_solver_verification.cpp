@@ -183,7 +183,7 @@ TEST(Verification, TwoDisksAgainstThePeer) {
     // End-of-run total energy: the peer ends 3.0 % below the start; agreement
     // to 1 % of the total (observed 0.2-0.3 %).
     const talus::Diagnostics d = s->sim->diagnostics();
-    const double total = d.kinetic_energy + d.strain_energy;
+    const double total = d.kinetic_energy + d.stress_work;
     EXPECT_NEAR(total, ref.back()[3], 0.01 * ref.back()[3]);
     EXPECT_LT(total, ref[0][3]); // it does lose energy, as the peer's does
 }

@@ -56,7 +56,11 @@ struct Diagnostics {
     double mass = 0.0;
     std::array<double, 3> momentum{0, 0, 0};
     double kinetic_energy = 0.0;
-    double strain_energy = 0.0; // accumulated stress work (= stored energy for elastic materials)
+    // Accumulated stress work, sum over steps and particles of V sigma : d_eps
+    // (trapezoidal in each step), J. Not a stored energy: for a hypoelastic
+    // model under large rotations or an elastic-plastic one it is path
+    // dependent and may be negative.
+    double stress_work = 0.0;
     std::array<double, 3> angular_momentum{0, 0, 0}; // about the origin, z only in 2D
     std::size_t particles = 0;
     long removed = 0;   // particles removed after leaving the grid
