@@ -95,6 +95,7 @@ int main(int argc, char **argv) {
     auto *run = app.add_subcommand("run", "Run an MPM scenario (YAML)");
     std::string scenario_file, output_dir;
     bool force = false;
+    double progress_every = 10.0;
     int threads = 0;
     run->add_option("scenario", scenario_file, "Scenario file (YAML)")
         ->required()
@@ -103,6 +104,9 @@ int main(int argc, char **argv) {
                     "Where to write results (default: a folder named after the scenario, here)")
         ->type_name("DIR");
     run->add_flag("--force", force, "Overwrite the files of a previous run in the output folder");
+    run->add_option("--progress-every", progress_every,
+                    "Seconds between progress lines when stderr is not a terminal (default 10)")
+        ->check(CLI::PositiveNumber);
     run->add_option("--threads", threads, "Number of threads (default: OpenMP's, all cores)")
         ->check(CLI::PositiveNumber);
     auto *validate = app.add_subcommand("validate", "Check a scenario file without running it");
@@ -189,7 +193,9 @@ int main(int argc, char **argv) {
             talus::RunOptions ro;
             ro.output_dir = output_dir;
             ro.force = force;
-            ro.progress = isatty(2) != 0;
+            ro.progress = true;
+            ro.progress_tty = isatty(2) != 0;
+            ro.progress_interval = progress_every;
             ro.solver.threads = threads;
             const talus::RunSummary rs = talus::run_scenario(sc, ro, std::cerr);
             std::cerr << fmt::format(

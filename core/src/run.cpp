@@ -359,6 +359,14 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     std::size_t warnings_shown = 0;
     write_outputs();
     const double end = sc.end_time;
+    if (opt.progress) {
+        // From the initial state's stable step (or the fixed one): a lower
+        // bound when the material speeds up, said as an estimate.
+        const double dt0 = sc.solver.dt ? *sc.solver.dt : sim.critical_dt();
+        log << fmt::format("talus: {} particles; about {:.3g} steps of {:.3g} s to t = {:g} s "
+                           "(estimated from the initial state)\n",
+                           sim.particle_count(), std::ceil(end / dt0), dt0, end);
+    }
     const double every = sc.output.every > 0.0 ? sc.output.every : end;
     // Output k is due at k * every; it is written after the first step that
     // reaches that time (the file and the CSV rows carry the actual time).
@@ -380,18 +388,21 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
                 ++next_k;
             if (sim.time() >= end * (1.0 - 1e-12)) break;
         }
-        if (opt.progress && elapsed() - last_progress > 0.5) {
+        const double interval = opt.progress_tty ? 0.5 : opt.progress_interval;
+        if (opt.progress && elapsed() - last_progress > interval) {
             last_progress = elapsed();
             const double rate = static_cast<double>(particle_steps) / std::max(last_progress, 1e-9);
             const double eta = last_progress * (end - sim.time()) / std::max(sim.time(), 1e-300);
             std::fprintf(stderr,
-                         "\rstep %ld  t = %.4g / %.4g s  dt = %.3g s  elapsed %s  ETA %s  %.3g "
-                         "particle-steps/s   ",
-                         sim.steps(), sim.time(), end, sim.last_dt(),
-                         fmt_time(last_progress).c_str(), fmt_time(eta).c_str(), rate);
+                         "%sstep %ld  t = %.4g / %.4g s  dt = %.3g s  elapsed %s  ETA %s  %.3g "
+                         "particle-steps/s%s",
+                         opt.progress_tty ? "\r" : "talus: progress: ", sim.steps(), sim.time(),
+                         end, sim.last_dt(), fmt_time(last_progress).c_str(), fmt_time(eta).c_str(),
+                         rate, opt.progress_tty ? "   " : "\n");
+            std::fflush(stderr);
         }
     }
-    if (opt.progress) std::fprintf(stderr, "\n");
+    if (opt.progress && opt.progress_tty) std::fprintf(stderr, "\n");
     RunSummary rs;
     rs.steps = sim.steps();
     rs.time = sim.time();

@@ -13,7 +13,11 @@ namespace talus {
 struct RunOptions {
     std::filesystem::path output_dir; // empty: a folder named after the scenario
     bool force = false;               // overwrite a previous run's files
-    bool progress = false;            // progress line on stderr
+    // Progress on stderr: a carriage-return line on a terminal; otherwise
+    // (log files, batch jobs) a plain line every `progress_interval` s.
+    bool progress = false;
+    bool progress_tty = false;
+    double progress_interval = 10.0;
     SolverOptions solver;
 };
 
