@@ -100,8 +100,21 @@ Node Node::at(std::size_t index) const {
 std::vector<std::string> Node::keys() const {
     expect_map();
     std::vector<std::string> out;
-    for (const auto &kv : node_)
-        out.push_back(kv.first.as<std::string>());
+    std::vector<YAML::Mark> marks;
+    for (const auto &kv : node_) {
+        const std::string key = kv.first.as<std::string>();
+        // A user-chosen name given twice (two groups or two materials
+        // called the same): yaml-cpp would hand out the first definition
+        // for both and lose the second.
+        const auto dup = std::find(out.begin(), out.end(), key);
+        if (dup != out.end())
+            throw Error(
+                fmt::format("{}: error: '{}' is defined twice (first at {}); names must be unique",
+                            mark_text(file_, kv.first.Mark()), child_path(path_, key),
+                            mark_text(file_, marks[static_cast<std::size_t>(dup - out.begin())])));
+        out.push_back(key);
+        marks.push_back(kv.first.Mark());
+    }
     return out;
 }
 
