@@ -386,7 +386,6 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
             // several of them.
             while (due() <= sim.time() + 1e-9 * sim.last_dt() && due() < end)
                 ++next_k;
-            if (sim.time() >= end * (1.0 - 1e-12)) break;
         }
         const double interval = opt.progress_tty ? 0.5 : opt.progress_interval;
         if (opt.progress && elapsed() - last_progress > interval) {

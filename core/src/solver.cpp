@@ -174,11 +174,9 @@ struct Simulation::Impl {
         auto moment = [&](auto shape) {
             using S = decltype(shape);
             int base = 0;
-            double w[S::width], dw[S::width], gv[S::width], m2 = 0.0;
+            double w[S::width], dw[S::width], gv[S::width];
             S::eval_bounded(xi, 0.0, cells[dd], base, w, dw, gv);
-            for (int k = 0; k < S::width; ++k)
-                m2 += w[k] * (gv[k] - xi) * (gv[k] - xi);
-            return m2 * h * h;
+            return second_moment<S::width>(w, gv, xi) * h * h;
         };
         return sim.sc_.solver.shape == ShapeKind::bspline3 ? moment(BSpline3Shape{})
                                                            : moment(BSpline2Shape{});
@@ -348,13 +346,16 @@ struct Stencil {
             else
                 S::eval(xi[d], s.lp[p], base[d], w1[d], dw1[d]);
             base[d] += g.ghost;
-            double m2 = 0.0;
-            for (int k = 0; k < W; ++k) {
+            for (int k = 0; k < W; ++k)
                 dw1[d][k] *= g.inv_h; // d/dx = d/dxi / h, once per axis
-                if constexpr (Near && Offsets)
-                    m2 += w1[d][k] * (g1[d][k] - xi[d]) * (g1[d][k] - xi[d]) * g.h * g.h;
+            if constexpr (Offsets) {
+                if constexpr (Near) {
+                    const double m2 = second_moment<W>(w1[d], g1[d], xi[d]) * g.h * g.h;
+                    dinv[d] = m2 > 0.0 ? 1.0 / m2 : 0.0;
+                } else {
+                    dinv[d] = g.apic_dinv;
+                }
             }
-            if constexpr (Offsets) dinv[d] = Near ? (m2 > 0.0 ? 1.0 / m2 : 0.0) : g.apic_dinv;
         }
         combine(g, base, w1, dw1, Near ? g1 : nullptr, xi);
     }

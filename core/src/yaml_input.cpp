@@ -103,13 +103,13 @@ std::vector<std::string> Node::keys() const {
     std::vector<YAML::Mark> marks;
     for (const auto &kv : node_) {
         const std::string key = kv.first.as<std::string>();
-        // A user-chosen name given twice (two groups or two materials
-        // called the same): yaml-cpp would hand out the first definition
-        // for both and lose the second.
+        // yaml-cpp keeps both of two equal keys and hands out the first for
+        // every lookup: a key (or a group or material name) given twice
+        // would silently lose its second definition.
         const auto dup = std::find(out.begin(), out.end(), key);
         if (dup != out.end())
             throw Error(
-                fmt::format("{}: error: '{}' is defined twice (first at {}); names must be unique",
+                fmt::format("{}: error: '{}' is given twice (first at {}); keys must be unique",
                             mark_text(file_, kv.first.Mark()), child_path(path_, key),
                             mark_text(file_, marks[static_cast<std::size_t>(dup - out.begin())])));
         out.push_back(key);
@@ -126,16 +126,9 @@ void Node::expect_sequence() const {
 }
 
 void Node::allow_keys(std::span<const std::string_view> allowed) const {
-    expect_map();
-    std::vector<std::string> seen;
+    keys(); // rejects a key given twice
     for (const auto &kv : node_) {
         const std::string key = kv.first.as<std::string>();
-        // yaml-cpp keeps one of two equal keys silently; a user who wrote a
-        // key twice meant something by each, so say so.
-        if (std::find(seen.begin(), seen.end(), key) != seen.end())
-            throw Error(fmt::format("{}: error: key '{}' appears twice",
-                                    mark_text(file_, kv.first.Mark()), child_path(path_, key)));
-        seen.push_back(key);
         if (std::find(allowed.begin(), allowed.end(), key) != allowed.end()) continue;
         const std::string guess = closest_match(key, allowed);
         std::string list;

@@ -173,8 +173,8 @@ TEST(ScenarioErrors, DuplicateNamesAreRejectedWithBothLocations) {
         with("  column: {material: sand, shape: {box: {min: [0, 0], max: [0.2, 0.4]}}}\n",
              "  column: {material: sand, shape: {box: {min: [0, 0], max: [0.2, 0.4]}}}\n"
              "  column: {material: sand, shape: {box: {min: [0.5, 0], max: [0.7, 0.4]}}}\n"));
-    EXPECT_TRUE(contains(g, "s.yaml:8:3: error: 'groups.column' is defined twice (first at "
-                            "s.yaml:7:3); names must be unique"))
+    EXPECT_TRUE(contains(g, "s.yaml:8:3: error: 'groups.column' is given twice (first at "
+                            "s.yaml:7:3); keys must be unique"))
         << g;
     const std::string m =
         error_of(with("  sand: {model: linear_elastic, density: 1800, youngs_modulus: 1.0e7, "
@@ -183,7 +183,7 @@ TEST(ScenarioErrors, DuplicateNamesAreRejectedWithBothLocations) {
                       "poisson_ratio: 0.3}\n"
                       "  sand: {model: linear_elastic, density: 2000, youngs_modulus: 2.0e7, "
                       "poisson_ratio: 0.3}\n"));
-    EXPECT_TRUE(contains(m, "s.yaml:6:3: error: 'materials.sand' is defined twice (first at "
+    EXPECT_TRUE(contains(m, "s.yaml:6:3: error: 'materials.sand' is given twice (first at "
                             "s.yaml:5:3)"))
         << m;
 }

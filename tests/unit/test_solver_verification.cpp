@@ -49,7 +49,20 @@ Oscillation bar_reference() {
     return measure(t, v);
 }
 
-// The bar's centre-of-mass velocity over two periods.
+// The bar's centre-of-mass velocity over two periods (20 s), sampled every
+// 0.05 s.
+Oscillation centre_of_mass_oscillation(talus::Simulation &sim) {
+    std::vector<double> t, v;
+    for (double target = 0.0; target <= 20.0 + 1e-9; target += 0.05) {
+        advance(sim, target);
+        const auto tot = totals(sim);
+        t.push_back(sim.time());
+        v.push_back(tot.p[0] / tot.mass);
+    }
+    return measure(t, v);
+}
+
+// The bar of configs/verification/bar_vibration.yaml under a scheme and transfer.
 Oscillation run_bar(const std::string &scheme, const std::string &transfer = "flip") {
     auto s = talus::test::make_sim([&] {
         std::ifstream in(talus::test::source_dir() / "configs/verification/bar_vibration.yaml");
@@ -62,14 +75,7 @@ Oscillation run_bar(const std::string &scheme, const std::string &transfer = "fl
         text.replace(tr, 14, "transfer: " + transfer);
         return talus::yaml::load_string(text, "bar_vibration.yaml");
     }());
-    std::vector<double> t, v;
-    for (double target = 0.0; target <= 20.0 + 1e-9; target += 0.05) {
-        advance(*s->sim, target);
-        const auto tot = totals(*s->sim);
-        t.push_back(s->sim->time());
-        v.push_back(tot.p[0] / tot.mass);
-    }
-    return measure(t, v);
+    return centre_of_mass_oscillation(*s->sim);
 }
 
 } // namespace
@@ -209,14 +215,7 @@ double bar_period(int n, const std::string &shape) {
     for (auto &set : s->sim->sets())
         for (std::size_t p = 0; p < set.n; ++p)
             set.v[0][p] = 0.1 * std::sin(M_PI * set.x[0][p] / (2.0 * L));
-    std::vector<double> t, v;
-    for (double target = 0.0; target <= 20.0 + 1e-9; target += 0.05) {
-        advance(*s->sim, target);
-        const auto tot = totals(*s->sim);
-        t.push_back(s->sim->time());
-        v.push_back(tot.p[0] / tot.mass);
-    }
-    return measure(t, v).period;
+    return centre_of_mass_oscillation(*s->sim).period;
 }
 
 } // namespace

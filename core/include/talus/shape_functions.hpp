@@ -66,20 +66,51 @@ inline double bspline_basis(const double *t, double u, double end, double &dN) {
 // for the same reason. Also returns each node's Greville abscissa (the mean
 // of its P inner knots), the point the node's coefficient represents
 // (sum_k g_k N_k(u) = u), for the affine transfers and node selection.
+template <int P>
+inline void clamped_knots(int k, int n, double *t) {
+    for (int j = 0; j < P + 2; ++j)
+        t[j] = std::clamp(k - 0.5 * (P + 1) + j, 0.0, static_cast<double>(n));
+}
+template <int P>
+inline double clamped_greville(int k, int n) {
+    double t[P + 2], s = 0.0;
+    clamped_knots<P>(k, n, t);
+    for (int j = 1; j <= P; ++j)
+        s += t[j];
+    return s / P;
+}
 template <int P, int W>
 inline void clamped_bsplines(double u, int n, int base, double *w, double *dw, double *g) {
-    constexpr double half = 0.5 * (P + 1);
     for (int a = 0; a < W; ++a) {
-        const int k = base + a;
         double t[P + 2];
-        for (int j = 0; j < P + 2; ++j)
-            t[j] = std::clamp(k - half + j, 0.0, static_cast<double>(n));
+        clamped_knots<P>(base + a, n, t);
         w[a] = bspline_basis<P>(t, u, static_cast<double>(n), dw[a]);
-        double s = 0.0;
-        for (int j = 1; j <= P; ++j)
-            s += t[j];
-        g[a] = s / P;
+        g[a] = clamped_greville<P>(base + a, n);
     }
+}
+
+// sum_a w_a (g_a - xi)^2 over a stencil of W nodes with points g (cells^2):
+// the one-axis entry of APIC's D_p.
+template <int W>
+inline double second_moment(const double *w, const double *g, double xi) {
+    double m2 = 0.0;
+    for (int k = 0; k < W; ++k)
+        m2 += w[k] * (g[k] - xi) * (g[k] - xi);
+    return m2;
+}
+
+// eval_bounded() of the B-splines: the uniform kernel where interior() says
+// it holds (almost everywhere), the clamped functions next to the faces.
+template <class S, int P>
+inline void bounded_bspline(double xi, int n, int &base, double *w, double *dw, double *g) {
+    xi = std::clamp(xi, 0.0, static_cast<double>(n));
+    S::eval(xi, 0.0, base, w, dw);
+    if (S::interior(xi, n)) {
+        for (int k = 0; k < S::width; ++k)
+            g[k] = base + k;
+        return;
+    }
+    clamped_bsplines<P, S::width>(xi, n, base, w, dw, g);
 }
 
 // Linear ("tent") functions, the original MPM of Sulsky et al. (1994).
@@ -169,18 +200,9 @@ struct BSpline2Shape {
     // clamped; the first pieces mirror this at the upper face. So only
     // 0 <= xi < 3/2 (and n - 3/2 <= xi <= n) differ (tested).
     static bool interior(double xi, int n) { return xi >= 1.5 && xi < n - 1.5; }
-    // Nodes 2 .. n - 2 have no clamped knot: the uniform formulas hold
-    // where the whole stencil lies among them, which is almost everywhere.
-    static inline void eval_bounded(double xi, double lp, int n, int &base, double *w, double *dw,
-                                    double *g) {
-        xi = std::clamp(xi, 0.0, static_cast<double>(n));
-        eval(xi, lp, base, w, dw);
-        if (base >= 2 && base + width - 1 <= n - 2) {
-            for (int k = 0; k < width; ++k)
-                g[k] = base + k;
-            return;
-        }
-        clamped_bsplines<2, width>(xi, n, base, w, dw, g);
+    static void eval_bounded(double xi, double /*lp*/, int n, int &base, double *w, double *dw,
+                             double *g) {
+        bounded_bspline<BSpline2Shape, 2>(xi, n, base, w, dw, g);
     }
 };
 
@@ -205,18 +227,9 @@ struct BSpline3Shape {
     // As for the quadratic: node 1's inner knots (0, 1, 2) are unclamped, so
     // only 0 <= xi < 2 (and n - 2 <= xi <= n) differ (tested).
     static bool interior(double xi, int n) { return xi >= 2.0 && xi < n - 2.0; }
-    // Nodes 2 .. n - 2 have no clamped knot: the uniform formulas hold
-    // where the whole stencil lies among them, which is almost everywhere.
-    static inline void eval_bounded(double xi, double lp, int n, int &base, double *w, double *dw,
-                                    double *g) {
-        xi = std::clamp(xi, 0.0, static_cast<double>(n));
-        eval(xi, lp, base, w, dw);
-        if (base >= 2 && base + width - 1 <= n - 2) {
-            for (int k = 0; k < width; ++k)
-                g[k] = base + k;
-            return;
-        }
-        clamped_bsplines<3, width>(xi, n, base, w, dw, g);
+    static void eval_bounded(double xi, double /*lp*/, int n, int &base, double *w, double *dw,
+                             double *g) {
+        bounded_bspline<BSpline3Shape, 3>(xi, n, base, w, dw, g);
     }
 };
 
@@ -229,12 +242,9 @@ inline constexpr int kGhostLayers = 2;
 // itself, or for the clamped B-splines its Greville abscissa (which moves
 // only for the nodes next to a face).
 inline double node_greville(ShapeKind kind, int k, int n) {
-    if (kind != ShapeKind::bspline2 && kind != ShapeKind::bspline3) return k;
-    const int P = kind == ShapeKind::bspline2 ? 2 : 3;
-    double s = 0.0;
-    for (int j = 1; j <= P; ++j)
-        s += std::clamp(k - 0.5 * (P + 1) + j, 0.0, static_cast<double>(n));
-    return s / P;
+    if (kind == ShapeKind::bspline2) return clamped_greville<2>(k, n);
+    if (kind == ShapeKind::bspline3) return clamped_greville<3>(k, n);
+    return k;
 }
 
 // The layer of nodes, counted outward from a face (0: the node on the face),
