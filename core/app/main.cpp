@@ -3,7 +3,9 @@
 // status 1; command-line misuse exits with status 2 (CLI11's convention is
 // kept: 105 and up are its own parse errors, mapped to 2 here).
 #include <talus/conformance.hpp>
+#include <talus/crash_report.hpp>
 #include <talus/error.hpp>
+#include <talus/output_file.hpp>
 #include <talus/plugin_loader.hpp>
 #include <talus/point_driver.hpp>
 #include <talus/run.hpp>
@@ -13,6 +15,8 @@
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 
+#include <csignal>
+#include <filesystem>
 #include <iostream>
 #include <sstream>
 #include <unistd.h>
@@ -73,6 +77,29 @@ void print_library(std::ostream &out, const PluginLibrary &lib) {
     }
 }
 
+// A YAML file handed to the wrong command: say what it is and which command
+// wants it. A scenario has groups:, a driver case has a path: (and no
+// groups:); anything else is left to the command's own reader.
+enum class YamlKind { other, scenario, point_case };
+YamlKind yaml_kind(const std::string &file) {
+    try {
+        const YAML::Node n = YAML::LoadFile(file);
+        if (!n.IsMap()) return YamlKind::other;
+        if (n["groups"] || n["grid"]) return YamlKind::scenario;
+        if (n["path"] || (n["material"] && !n["materials"])) return YamlKind::point_case;
+    } catch (const std::exception &) {
+    }
+    return YamlKind::other;
+}
+
+bool is_yaml_name(const std::string &s) {
+    auto ends = [&](const char *e) {
+        const std::string x = e;
+        return s.size() > x.size() && s.compare(s.size() - x.size(), x.size(), x) == 0;
+    };
+    return ends(".yaml") || ends(".yml");
+}
+
 bool looks_like_library(const std::string &s) {
     return s.find('/') != std::string::npos || (s.size() > 3 && s.substr(s.size() - 3) == ".so");
 }
@@ -104,6 +131,10 @@ int main(int argc, char **argv) {
                     "Where to write results (default: a folder named after the scenario, here)")
         ->type_name("DIR");
     run->add_flag("--force", force, "Overwrite the files of a previous run in the output folder");
+    bool allow_large = false;
+    run->add_flag("--allow-large", allow_large,
+                  "Run even when the estimated step count (1e8) or VTK file count (1e5) is "
+                  "exceeded");
     run->add_option("--progress-every", progress_every,
                     "Seconds between progress lines when stderr is not a terminal (default 10)")
         ->check(CLI::PositiveNumber);
@@ -187,12 +218,35 @@ int main(int argc, char **argv) {
         std::vector<std::filesystem::path> dirs(plugin_path.begin(), plugin_path.end());
         talus::PluginRegistry registry(dirs);
 
+        // A plugin that crashes inside this process is named (run, validate
+        // and point call plugins in-process; `plugin check` isolates them).
+        if (run->parsed() || validate->parsed() || point->parsed())
+            talus::crash::install_handlers();
+        // A file-size limit (ulimit -f) then fails the write with EFBIG,
+        // reported with the file, instead of killing the process unexplained.
+        std::signal(SIGXFSZ, SIG_IGN);
+        auto wrong_file = [](const std::string &file, YamlKind want, const char *command) {
+            const YamlKind k = yaml_kind(file);
+            if (k == YamlKind::other || k == want) return;
+            throw talus::Error(
+                k == YamlKind::scenario
+                    ? fmt::format("{}: this is a scenario (it has groups: and grid:), not what "
+                                  "`talus {}` reads; run it with `talus run {}` or check it with "
+                                  "`talus validate {}`",
+                                  file, command, file, file)
+                    : fmt::format("{}: this is a material-point driver case (it has path:), not "
+                                  "what `talus {}` reads; run it with `talus point {}`",
+                                  file, command, file));
+        };
+
         if (run->parsed()) {
+            wrong_file(scenario_file, YamlKind::scenario, "run");
             const talus::yaml::Node root = talus::yaml::load_file(scenario_file);
             talus::Scenario sc = talus::read_scenario(root, registry);
             talus::RunOptions ro;
             ro.output_dir = output_dir;
             ro.force = force;
+            ro.allow_large = allow_large;
             ro.progress = true;
             ro.progress_tty = isatty(2) != 0;
             ro.progress_interval = progress_every;
@@ -206,13 +260,27 @@ int main(int argc, char **argv) {
             return 0;
         }
         if (validate->parsed()) {
+            wrong_file(validate_file, YamlKind::scenario, "validate");
             const talus::yaml::Node root = talus::yaml::load_file(validate_file);
-            const talus::Scenario sc = talus::read_scenario(root, registry);
-            std::cout << fmt::format("{}: valid ({}D, {} material(s), {} group(s))\n",
-                                     validate_file, sc.dim, sc.materials.size(), sc.groups.size());
+            talus::Scenario sc = talus::read_scenario(root, registry);
+            // Everything `run` decides before its first step, by the same code.
+            const talus::Prepared prep = talus::prepare_run(sc, {});
+            const talus::RunPlan &plan = prep.plan;
+            for (const std::string &n : plan.notes)
+                std::cerr << "talus: " << n << '\n';
+            for (const std::string &w : plan.over_limits)
+                std::cerr << w << " (`talus run` refuses this unless --allow-large)\n";
+            std::cout << fmt::format(
+                "{}: valid ({}D, {} material(s), {} group(s)): {} particles, {:.3g} grid nodes, "
+                "about {:.3g} MB; about {:.3g} steps of {:.3g} s{}\n",
+                validate_file, sc.dim, sc.materials.size(), sc.groups.size(), plan.particles,
+                plan.estimate.nodes, plan.estimate.bytes / 1e6, plan.steps, plan.first_dt,
+                plan.output_files > 0 ? fmt::format(", {:.3g} VTK files", plan.output_files)
+                                      : std::string());
             return 0;
         }
         if (point->parsed()) {
+            wrong_file(case_file, YamlKind::point_case, "point");
             const talus::yaml::Node root = talus::yaml::load_file(case_file);
             const talus::PointCase pc = talus::read_point_case(root, registry);
             const auto rows = talus::run_point_case(pc);
@@ -271,6 +339,15 @@ int main(int argc, char **argv) {
                 }
             }
             check_opt.isolate = !no_isolate;
+            if (is_yaml_name(check_target))
+                throw talus::Error(fmt::format(
+                    "{}: `talus plugin check` checks a plugin library (a .so file, or its name on "
+                    "the plugin path), not a YAML file; {}",
+                    check_target,
+                    yaml_kind(check_target) == YamlKind::scenario
+                        ? fmt::format("this is a scenario: `talus validate {}` checks it",
+                                      check_target)
+                        : fmt::format("a driver case runs with `talus point {}`", check_target)));
             // Resolve a name through the search path, but do not load it
             // here: the checks load it themselves (in a child process).
             std::filesystem::path file = check_target;
@@ -295,6 +372,10 @@ int main(int argc, char **argv) {
         }
     } catch (const talus::Error &e) {
         std::cerr << e.what() << '\n';
+        return 1;
+    } catch (const std::filesystem::filesystem_error &e) {
+        // Permissions, a missing folder, a full disk: the user's to fix.
+        std::cerr << fmt::format("talus: error: {}\n", e.what());
         return 1;
     } catch (const std::exception &e) {
         std::cerr << "talus: internal error: " << e.what() << '\n';

@@ -1,4 +1,6 @@
 #include <talus/plugin_loader.hpp>
+
+#include <talus/crash_report.hpp>
 #include <talus/yaml_input.hpp>
 
 #include <fmt/format.h>
@@ -196,6 +198,7 @@ std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
     talus_error err = fresh_error();
     std::int32_t status = TALUS_STATUS_FAILED;
     try {
+        const crash::PluginCall call("(its entry point)", file.c_str());
         status = entry(&host, &desc, &err);
     } catch (...) {
         throw Error(
@@ -308,6 +311,7 @@ std::unique_ptr<MaterialInstance> Model::create(std::span<const double> values) 
     talus_instance *inst = nullptr;
     std::int32_t status = TALUS_STATUS_FAILED;
     try {
+        const crash::PluginCall call(id_.c_str(), library_->path().c_str());
         status =
             raw_->create(values.data(), static_cast<std::uint32_t>(values.size()), &inst, &err);
     } catch (...) {
@@ -328,7 +332,10 @@ std::unique_ptr<MaterialInstance> Model::create(std::span<const double> values) 
 // ------------------------------------------------------ MaterialInstance --
 
 MaterialInstance::~MaterialInstance() {
-    if (instance_) model_->raw().destroy(instance_);
+    if (instance_) {
+        const crash::PluginCall call(model_->id().c_str(), library_->path().c_str());
+        model_->raw().destroy(instance_);
+    }
 }
 
 MaterialInstance::Result MaterialInstance::update(talus_batch &b) const noexcept {
@@ -337,6 +344,7 @@ MaterialInstance::Result MaterialInstance::update(talus_batch &b) const noexcept
     b.state_size = model_->state_size();
     talus_error err = fresh_error();
     try {
+        const crash::PluginCall call(model_->id().c_str(), library_->path().c_str());
         r.status = model_->raw().update(instance_, &b, &err);
     } catch (...) {
         r.status = TALUS_STATUS_FAILED;

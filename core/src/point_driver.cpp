@@ -204,29 +204,4 @@ void write_point_csv(std::ostream &out, const Model &model, const std::vector<Po
     }
 }
 
-void write_file_atomically(const std::string &path, const std::string &content) {
-    namespace fs = std::filesystem;
-    const fs::path target(path);
-    const fs::path tmp =
-        target.parent_path() / fmt::format(".{}.tmp.{}", target.filename().string(), ::getpid());
-    {
-        std::ofstream f(tmp, std::ios::binary);
-        if (!f) throw Error(fmt::format("{}: cannot write (check the directory exists)", path));
-        f << content;
-        f.flush();
-        if (!f) {
-            f.close();
-            std::remove(tmp.c_str());
-            throw Error(fmt::format("{}: write failed", path));
-        }
-    }
-    std::error_code ec;
-    fs::rename(tmp, target, ec);
-    if (ec) {
-        std::remove(tmp.c_str());
-        throw Error(
-            fmt::format("{}: cannot move the finished file into place: {}", path, ec.message()));
-    }
-}
-
 } // namespace talus

@@ -1,17 +1,19 @@
 #include <talus/run.hpp>
 
-#include <talus/sdk/voigt.hpp>
+#include <talus/crash_report.hpp>
+#include <talus/output_file.hpp>
+#include <talus/vtk_output.hpp>
 
 #include <fmt/format.h>
 
 #include <chrono>
 #include <cmath>
 #include <cstdint>
-#include <cstring>
+#include <cstdio>
 #include <fstream>
 #include <limits>
 #include <ostream>
-#include <sstream>
+#include <unistd.h>
 
 namespace talus {
 
@@ -21,176 +23,295 @@ fs::path default_output_dir(const std::string &scenario_file) {
     return fs::current_path() / fs::path(scenario_file).stem();
 }
 
-// -------------------------------------------------------------------- VTK --
+// ------------------------------------------------------ before the run --
 
 namespace {
 
-// One appended data array: its XML header and its bytes.
-struct VtkArray {
-    std::string name, type;
-    int components = 1;
-    std::vector<char> bytes;
-    template <class T>
-    void put(T v) {
-        const char *p = reinterpret_cast<const char *>(&v);
-        bytes.insert(bytes.end(), p, p + sizeof(T));
-    }
-};
+std::string bytes_text(double b) {
+    if (b >= 1e12) return fmt::format("{:.3g} TB", b / 1e12);
+    if (b >= 1e9) return fmt::format("{:.3g} GB", b / 1e9);
+    if (b >= 1e6) return fmt::format("{:.3g} MB", b / 1e6);
+    return fmt::format("{:.3g} kB", b / 1e3);
+}
+
+// MemAvailable of /proc/meminfo in bytes, 0 where there is none.
+double memory_available() {
+    std::ifstream in("/proc/meminfo");
+    std::string key;
+    double kb = 0.0;
+    std::string unit;
+    while (in >> key >> kb >> unit)
+        if (key == "MemAvailable:") return kb * 1024.0;
+    return 0.0;
+}
 
 } // namespace
 
-void write_vtu(const fs::path &file, const Simulation &sim,
-               const std::vector<std::string> &state_fields) {
-    const Scenario &sc = sim.scenario();
-    const int D = sc.dim;
-    const std::size_t n = sim.particle_count();
-    std::vector<VtkArray> point_data;
-    // add() hands out references into point_data: no reallocation allowed.
-    point_data.reserve(9 + state_fields.size());
-    auto add = [&](const std::string &name, const std::string &type, int comps) -> VtkArray & {
-        point_data.push_back(VtkArray{name, type, comps, {}});
-        point_data.back().bytes.reserve(n * static_cast<std::size_t>(comps) * 8);
-        return point_data.back();
-    };
-    VtkArray &id = add("id", "Int64", 1);
-    VtkArray &grp = add("group", "Int32", 1);
-    VtkArray &disp = add("displacement", "Float64", 3);
-    VtkArray &vel = add("velocity", "Float64", 3);
-    VtkArray &sig = add("stress", "Float64", 9);
-    VtkArray &pp = add("p", "Float64", 1);
-    VtkArray &qq = add("q", "Float64", 1);
-    VtkArray &vol = add("volume", "Float64", 1);
-    VtkArray &jj = add("J", "Float64", 1);
-    // State variables by name across materials; a particle whose material
-    // lacks one gets NaN (shown blank in ParaView).
-    struct StateField {
-        std::string name;
-        std::uint32_t size = 1;
-        std::size_t array = 0;
-    };
-    std::vector<StateField> sf;
-    for (const std::string &name : state_fields) {
-        std::uint32_t size = 0;
-        for (const auto &m : sc.materials)
-            for (const auto &v : m.spec.model->state())
-                if (v.name == name) size = std::max(size, v.size);
-        sf.push_back(StateField{name, size, point_data.size()});
-        add(name, "Float64", static_cast<int>(size));
-    }
-    VtkArray points{"Points", "Float64", 3, {}};
-    for (const ParticleSet &s : sim.sets()) {
-        const Model &model = *sc.materials[s.material].spec.model;
-        for (std::size_t p = 0; p < s.n; ++p) {
-            id.put<std::int64_t>(s.id[p]);
-            grp.put<std::int32_t>(s.group[p]);
-            for (int d = 0; d < 3; ++d) {
-                const std::size_t dd = static_cast<std::size_t>(d);
-                const bool in = d < D;
-                points.put<double>(in ? s.x[dd][p] : 0.0);
-                disp.put<double>(in ? s.x[dd][p] - s.x0[dd][p] : 0.0);
-                vel.put<double>(in ? s.v[dd][p] : 0.0);
-            }
-            const sdk::Vec6 v6 = Eigen::Map<const sdk::Vec6>(&s.stress[6 * p]);
-            const sdk::Mat3 m = sdk::stress_to_matrix(v6);
-            for (int a = 0; a < 3; ++a)
-                for (int b = 0; b < 3; ++b)
-                    sig.put<double>(m(a, b));
-            pp.put<double>(sdk::mean_pressure(v6));
-            qq.put<double>(sdk::von_mises(v6));
-            vol.put<double>(s.J[p] * s.vol0[p]);
-            jj.put<double>(s.J[p]);
-            for (const StateField &f : sf) {
-                const StateInfo *info = nullptr;
-                for (const auto &v : model.state())
-                    if (v.name == f.name) info = &v;
-                for (std::uint32_t k = 0; k < f.size; ++k)
-                    point_data[f.array].put<double>(
-                        info && k < info->size ? s.state[s.state_size * p + info->offset + k]
-                                               : std::numeric_limits<double>::quiet_NaN());
-            }
+ResourceEstimate check_memory(const Scenario &sc, double &total, double &available) {
+    const ResourceEstimate e = estimate_resources(sc);
+    const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGE_SIZE);
+    total = pages > 0 && page > 0 ? static_cast<double>(pages) * static_cast<double>(page) : 0.0;
+    available = memory_available();
+    if (total > 0.0 && e.bytes > total)
+        throw Error(sc.grid_origin.error(fmt::format(
+            "the scenario needs about {} of memory ({:.3g} particles, {:.3g} grid nodes), more "
+            "than this machine has ({}); coarsen grid.cell, lower particles_per_cell, or "
+            "shrink the grid or the groups",
+            bytes_text(e.bytes), e.particles, e.nodes, bytes_text(total))));
+    return e;
+}
+
+namespace {
+
+// The particle nearest each probe point at t = 0 (-1 for other probes). A
+// point farther than a cell from every particle is a mistake in the point.
+std::vector<std::int64_t> probe_particles(const Scenario &sc, const Simulation &sim) {
+    std::vector<std::int64_t> ids;
+    for (const Probe &p : sc.output.probes) {
+        std::int64_t id = -1;
+        if (p.kind == Probe::Kind::particle) {
+            double best = std::numeric_limits<double>::infinity();
+            for (const auto &s : sim.sets())
+                for (std::size_t k = 0; k < s.n; ++k) {
+                    double d2 = 0.0;
+                    for (int d = 0; d < sc.dim; ++d)
+                        d2 += std::pow(s.x[static_cast<std::size_t>(d)][k] -
+                                           p.point[static_cast<std::size_t>(d)],
+                                       2);
+                    if (d2 < best) {
+                        best = d2;
+                        id = s.id[k];
+                    }
+                }
+            if (std::sqrt(best) > sc.cell)
+                throw Error(p.origin.error(fmt::format(
+                    "probe '{}': no particle within a cell ({:g} m) of its point; the nearest "
+                    "is {:.4g} m away (a probe follows the particle nearest its point at t = 0)",
+                    p.name, sc.cell, std::sqrt(best))));
         }
+        ids.push_back(id);
     }
-    // One vertex cell per particle.
-    VtkArray conn{"connectivity", "Int64", 1, {}}, offs{"offsets", "Int64", 1, {}},
-        types{"types", "UInt8", 1, {}};
-    for (std::size_t i = 0; i < n; ++i) {
-        conn.put<std::int64_t>(static_cast<std::int64_t>(i));
-        offs.put<std::int64_t>(static_cast<std::int64_t>(i + 1));
-        types.put<std::uint8_t>(1); // VTK_VERTEX
-    }
+    return ids;
+}
 
-    std::ostringstream xml;
-    std::uint64_t offset = 0;
-    auto header = [&](const VtkArray &a, bool named) {
-        xml << fmt::format(
-            "        <DataArray type=\"{}\"{} NumberOfComponents=\"{}\" format=\"appended\" "
-            "offset=\"{}\"/>\n",
-            a.type, named ? fmt::format(" Name=\"{}\"", a.name) : std::string(), a.components,
-            offset);
-        offset += sizeof(std::uint64_t) + a.bytes.size();
-    };
-    xml << "<?xml version=\"1.0\"?>\n"
-        << "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" "
-           "header_type=\"UInt64\">\n"
-        << "  <UnstructuredGrid>\n"
-        << fmt::format("    <Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">\n", n, n)
-        << "      <PointData>\n";
-    for (const VtkArray &a : point_data)
-        header(a, true);
-    xml << "      </PointData>\n      <Points>\n";
-    header(points, false);
-    xml << "      </Points>\n      <Cells>\n";
-    header(conn, true);
-    header(offs, true);
-    header(types, true);
-    xml << "      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n  <AppendedData "
-           "encoding=\"raw\">\n   _";
+} // namespace
 
-    const fs::path tmp = file.string() + ".tmp";
-    {
-        std::ofstream out(tmp, std::ios::binary);
-        if (!out) throw Error(fmt::format("{}: cannot write", file.string()));
-        out << xml.str();
-        auto blob = [&](const VtkArray &a) {
-            const std::uint64_t len = a.bytes.size();
-            out.write(reinterpret_cast<const char *>(&len), sizeof len);
-            out.write(a.bytes.data(), static_cast<std::streamsize>(a.bytes.size()));
-        };
-        for (const VtkArray &a : point_data)
-            blob(a);
-        blob(points);
-        blob(conn);
-        blob(offs);
-        blob(types);
-        out << "\n  </AppendedData>\n</VTKFile>\n";
-        if (!out) throw Error(fmt::format("{}: write failed", file.string()));
+Prepared prepare_run(Scenario &sc, const SolverOptions &solver) {
+    Prepared out;
+    RunPlan &plan = out.plan;
+    plan.estimate = check_memory(sc, plan.memory_total, plan.memory_available);
+    if (plan.memory_available > 0.0 && plan.estimate.bytes > plan.memory_available)
+        plan.notes.push_back(
+            fmt::format("the run needs about {} of memory, more than is available now ({} of {})",
+                        bytes_text(plan.estimate.bytes), bytes_text(plan.memory_available),
+                        bytes_text(plan.memory_total)));
+    out.sim = std::make_unique<Simulation>(sc, solver);
+    const Simulation &sim = *out.sim;
+    plan.particles = sim.particle_count();
+    out.probe_particles = probe_particles(sc, sim);
+    const double dt_crit = sim.critical_dt();
+    sim.check_fixed_dt(dt_crit);
+    if (sc.solver.dt && *sc.solver.dt > dt_crit)
+        plan.notes.push_back(sc.solver.dt_origin.warning(fmt::format(
+            "the fixed dt {:.4g} s exceeds cfl h / max(c + |v|) = {:.4g} s at t = 0: below the "
+            "stability limit ({:.4g} s) but without the cfl margin",
+            *sc.solver.dt, dt_crit, dt_crit / sc.solver.cfl)));
+    plan.first_dt = sc.solver.dt ? *sc.solver.dt : dt_crit;
+    plan.steps = std::ceil(sc.end_time / plan.first_dt);
+    if (sc.output.vtk) {
+        // One file per output time, at most one per step, plus the start.
+        const double due = sc.output.every > 0.0 ? std::ceil(sc.end_time / sc.output.every) : 1.0;
+        plan.output_files = std::min(due, plan.steps) + 1.0;
     }
-    fs::rename(tmp, file);
+    if (plan.steps > kMaxSteps)
+        plan.over_limits.push_back(sc.end_origin.warning(fmt::format(
+            "about {:.3g} steps of {:.3g} s (the stable step of the initial state{}) to reach "
+            "t = {:g} s: more than {:.0e}; check the end time, the units, the grid cell and the "
+            "velocities",
+            plan.steps, plan.first_dt, sc.solver.dt ? ", here fixed" : "", sc.end_time,
+            kMaxSteps)));
+    if (plan.output_files > kMaxOutputFiles)
+        plan.over_limits.push_back(sc.output.every_origin.warning(fmt::format(
+            "the cadence asks for about {:.3g} VTK files, more than {:.0e}; raise output.every",
+            plan.output_files, kMaxOutputFiles)));
+    return out;
 }
 
 // -------------------------------------------------------------- the run --
 
 namespace {
 
-const char *kOwnFiles[] = {"diagnostics.csv", "probes.csv", "particles.pvd"};
-
 bool is_own_file(const fs::path &p) {
     const std::string name = p.filename().string();
-    for (const char *f : kOwnFiles)
+    for (const char *f : {"diagnostics.csv", "probes.csv", "particles.pvd"})
         if (name == f) return true;
-    return name.rfind("particles_", 0) == 0 && p.extension() == ".vtu";
+    return (name.rfind("particles_", 0) == 0 || name.rfind("failure_", 0) == 0) &&
+           p.extension() == ".vtu";
 }
-
-struct ProbeTarget {
-    const Probe *probe;
-    std::int64_t particle = -1; // for particle probes
-};
 
 std::string fmt_time(double s) {
     if (!std::isfinite(s)) return "?";
     const long t = static_cast<long>(s + 0.5);
     return fmt::format("{}:{:02d}:{:02d}", t / 3600, (t / 60) % 60, t % 60);
 }
+
+// Everything a run writes, every write checked (output_file.hpp). The VTK
+// file of an output time is complete before its CSV rows are written, so
+// no row stands for a file that is not there.
+class RunOutput {
+  public:
+    RunOutput(const fs::path &dir, const Scenario &sc, const Simulation &sim,
+              std::vector<std::int64_t> probe_ids)
+        : dir_(dir), sc_(sc), sim_(sim), probe_ids_(std::move(probe_ids)) {
+        // State variables to write: those named in output.state, else every
+        // one its plugin flags for output.
+        fields_ = sc.output.state_fields;
+        if (sc.output.all_flagged_state)
+            for (const auto &m : sc.materials)
+                for (const auto &v : m.spec.model->state())
+                    if (v.output() &&
+                        std::find(fields_.begin(), fields_.end(), v.name) == fields_.end())
+                        fields_.push_back(v.name);
+        diag_ = OutputFile(dir / "diagnostics.csv");
+        diag_ << "step,time,dt,mass,momentum_x,momentum_y,momentum_z,kinetic_energy,stress_work,"
+                 "angular_momentum_x,angular_momentum_y,angular_momentum_z,particles,removed,"
+                 "cut_steps,held_at_faces\n";
+        diag_.flush();
+        if (!sc.output.probes.empty()) {
+            prob_ = OutputFile(dir / "probes.csv");
+            std::string h = "time";
+            const char *axes = "xyz";
+            for (const Probe &p : sc.output.probes) {
+                const std::string &nm = p.name;
+                const bool particle = p.kind == Probe::Kind::particle;
+                for (int d = 0; d < sc.dim; ++d)
+                    h += fmt::format(",{}.{}", nm, axes[d]);
+                if (particle)
+                    for (int d = 0; d < sc.dim; ++d)
+                        h += fmt::format(",{}.u{}", nm, axes[d]);
+                for (int d = 0; d < sc.dim; ++d)
+                    h += fmt::format(",{}.v{}", nm, axes[d]);
+                if (particle)
+                    for (const char *c : {"xx", "yy", "zz", "xy", "yz", "xz"})
+                        h += fmt::format(",{}.sig_{}", nm, c);
+            }
+            prob_ << h << "\n";
+            prob_.flush();
+        }
+    }
+
+    int outputs() const { return outputs_; }
+
+    // An output time: the VTK file and the collection, then the rows.
+    void write() {
+        if (sc_.output.vtk) {
+            const std::string name = fmt::format("particles_{:05d}.vtu", outputs_);
+            write_vtu(dir_ / name, sim_, fields_);
+            pvd_.emplace_back(sim_.time(), name);
+            // Rewritten after every frame so that a run stopped early still
+            // leaves a valid collection.
+            write_pvd(dir_ / "particles.pvd", pvd_);
+        }
+        rows();
+        ++outputs_;
+    }
+
+    // The state when a step failed: failure_step<N>.vtu and a last row of
+    // each CSV. Returns where it went (or why it could not be written) for
+    // the error message.
+    std::string write_failure() noexcept {
+        try {
+            const fs::path file = dir_ / fmt::format("failure_step{}.vtu", sim_.steps() + 1);
+            write_vtu(file, sim_, fields_);
+            rows();
+            return fmt::format(
+                "\nthe state when the run stopped is in {} and the last row of diagnostics.csv "
+                "(particles may be part way through step {})",
+                file.string(), sim_.steps() + 1);
+        } catch (const std::exception &e) {
+            return fmt::format("\nthe state when the run stopped could not be written: {}",
+                               e.what());
+        }
+    }
+
+  private:
+    void rows() {
+        const Diagnostics dg = sim_.diagnostics();
+        diag_ << fmt::format("{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},"
+                             "{:.17g},{:.17g},{:.17g},{},{},{},{}\n",
+                             dg.step, dg.time, dg.dt, dg.mass, dg.momentum[0], dg.momentum[1],
+                             dg.momentum[2], dg.kinetic_energy, dg.stress_work,
+                             dg.angular_momentum[0], dg.angular_momentum[1], dg.angular_momentum[2],
+                             dg.particles, dg.removed, dg.cut_steps, dg.held_at_faces);
+        diag_.flush();
+        if (!prob_.is_open()) return;
+        std::string row = fmt::format("{:.17g}", sim_.time());
+        const int D = sc_.dim;
+        for (std::size_t i = 0; i < sc_.output.probes.size(); ++i) {
+            const Probe &probe = sc_.output.probes[i];
+            if (probe.kind == Probe::Kind::particle) {
+                bool found = false;
+                for (const auto &s : sim_.sets())
+                    for (std::size_t k = 0; k < s.n && !found; ++k)
+                        if (s.id[k] == probe_ids_[i]) {
+                            found = true;
+                            for (int d = 0; d < D; ++d)
+                                row += fmt::format(",{:.17g}", s.x[static_cast<std::size_t>(d)][k]);
+                            for (int d = 0; d < D; ++d)
+                                row += fmt::format(",{:.17g}",
+                                                   s.x[static_cast<std::size_t>(d)][k] -
+                                                       s.x0[static_cast<std::size_t>(d)][k]);
+                            for (int d = 0; d < D; ++d)
+                                row += fmt::format(",{:.17g}", s.v[static_cast<std::size_t>(d)][k]);
+                            for (std::size_t c = 0; c < 6; ++c)
+                                row += fmt::format(",{:.17g}", s.stress[6 * k + c]);
+                        }
+                if (!found) // removed after leaving the grid
+                    for (int c = 0; c < 3 * D + 6; ++c)
+                        row += ",nan";
+            } else {
+                double m = 0.0, x[3] = {0, 0, 0}, v[3] = {0, 0, 0};
+                for (const auto &s : sim_.sets())
+                    for (std::size_t k = 0; k < s.n; ++k)
+                        if (static_cast<std::size_t>(s.group[k]) == probe.group) {
+                            m += s.mass[k];
+                            for (int d = 0; d < D; ++d) {
+                                x[d] += s.mass[k] * s.x[static_cast<std::size_t>(d)][k];
+                                v[d] += s.mass[k] * s.v[static_cast<std::size_t>(d)][k];
+                            }
+                        }
+                for (int d = 0; d < D; ++d)
+                    row += fmt::format(",{:.17g}", m > 0 ? x[d] / m : NAN);
+                for (int d = 0; d < D; ++d)
+                    row += fmt::format(",{:.17g}", m > 0 ? v[d] / m : NAN);
+            }
+        }
+        prob_ << row << "\n";
+        prob_.flush();
+    }
+
+    fs::path dir_;
+    const Scenario &sc_;
+    const Simulation &sim_;
+    std::vector<std::int64_t> probe_ids_;
+    std::vector<std::string> fields_;
+    OutputFile diag_, prob_;
+    std::vector<std::pair<double, std::string>> pvd_;
+    int outputs_ = 0;
+};
+
+// The crash handler's last action (crash_report.hpp): the state at the
+// crash, best effort (the heap may be what the plugin broke).
+void write_state_after_crash(void *context) {
+    auto *out = static_cast<RunOutput *>(context);
+    const std::string where = out->write_failure();
+    ::write(STDERR_FILENO, where.data() + 1, where.size() - 1);
+    ::write(STDERR_FILENO, " (best effort after a crash)\n", 29);
+}
+
+struct ClearLastAction {
+    ~ClearLastAction() { crash::set_last_action(nullptr, nullptr); }
+};
 
 } // namespace
 
@@ -203,152 +324,45 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
         if (!fs::is_directory(dir, ec))
             throw Error(fmt::format("{}: exists and is not a directory", dir.string()));
         std::vector<fs::path> previous;
-        for (const auto &e : fs::directory_iterator(dir))
+        for (const auto &e : fs::directory_iterator(dir, ec))
             if (is_own_file(e.path())) previous.push_back(e.path());
+        if (ec)
+            throw Error(fmt::format("{}: cannot list the folder: {}", dir.string(), ec.message()));
         if (!previous.empty()) {
             if (!opt.force)
                 throw Error(fmt::format(
                     "{}: holds the output of a previous run ({} and {} more file(s)); "
                     "pass --force to overwrite it, or choose another --output-dir",
                     dir.string(), previous.front().filename().string(), previous.size() - 1));
-            for (const auto &p : previous)
-                fs::remove(p);
         }
     }
-    Simulation sim(sc, opt.solver);
-    fs::create_directories(dir);
-
-    // State variables to write: those named in output.state, else every one
-    // its plugin flags for output.
-    std::vector<std::string> state_fields = sc.output.state_fields;
-    if (sc.output.all_flagged_state)
-        for (const auto &m : sc.materials)
-            for (const auto &v : m.spec.model->state())
-                if (v.output() && std::find(state_fields.begin(), state_fields.end(), v.name) ==
-                                      state_fields.end())
-                    state_fields.push_back(v.name);
-
-    // Probes: the particle nearest each point at t = 0.
-    std::vector<ProbeTarget> probes;
-    for (const Probe &p : sc.output.probes) {
-        ProbeTarget t{&p, -1};
-        if (p.kind == Probe::Kind::particle) {
-            double best = std::numeric_limits<double>::infinity();
-            for (const auto &s : sim.sets())
-                for (std::size_t k = 0; k < s.n; ++k) {
-                    double d2 = 0.0;
-                    for (int d = 0; d < sc.dim; ++d)
-                        d2 += std::pow(s.x[static_cast<std::size_t>(d)][k] -
-                                           p.point[static_cast<std::size_t>(d)],
-                                       2);
-                    if (d2 < best) {
-                        best = d2;
-                        t.particle = s.id[k];
-                    }
-                }
-        }
-        probes.push_back(t);
-    }
-    const char *axes = "xyz";
-    std::ofstream diag(dir / "diagnostics.csv"), prob;
-    diag << "step,time,dt,mass,momentum_x,momentum_y,momentum_z,kinetic_energy,stress_work,"
-            "angular_momentum_x,angular_momentum_y,angular_momentum_z,particles,removed,cut_steps,"
-            "held_at_faces\n";
-    if (!probes.empty()) {
-        prob.open(dir / "probes.csv");
-        prob << "time";
-        for (const auto &t : probes) {
-            const std::string &nm = t.probe->name;
-            for (int d = 0; d < sc.dim; ++d)
-                prob << ',' << nm << '.' << axes[d];
-            if (t.probe->kind == Probe::Kind::particle)
-                for (int d = 0; d < sc.dim; ++d)
-                    prob << ',' << nm << ".u" << axes[d];
-            for (int d = 0; d < sc.dim; ++d)
-                prob << ',' << nm << ".v" << axes[d];
-            if (t.probe->kind == Probe::Kind::particle)
-                for (const char *c : {"xx", "yy", "zz", "xy", "yz", "xz"})
-                    prob << ',' << nm << ".sig_" << c;
-        }
-        prob << '\n';
+    Prepared prep = prepare_run(sc, opt.solver);
+    Simulation &sim = *prep.sim;
+    for (const std::string &n : prep.plan.notes)
+        log << "talus: " << n << '\n';
+    if (!prep.plan.over_limits.empty()) {
+        std::string all;
+        for (const std::string &w : prep.plan.over_limits)
+            all += (all.empty() ? "" : "\n") + w;
+        if (!opt.allow_large)
+            throw Error(all + "\nthe run was not started; pass --allow-large to run it anyway");
+        log << all << '\n';
     }
 
-    std::vector<std::pair<double, std::string>> pvd;
-    int outputs = 0;
-    auto write_outputs = [&]() {
-        const Diagnostics dg = sim.diagnostics();
-        diag << fmt::format("{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:."
-                            "17g},{:.17g},{:.17g},"
-                            "{},{},{},{}\n",
-                            dg.step, dg.time, dg.dt, dg.mass, dg.momentum[0], dg.momentum[1],
-                            dg.momentum[2], dg.kinetic_energy, dg.stress_work,
-                            dg.angular_momentum[0], dg.angular_momentum[1], dg.angular_momentum[2],
-                            dg.particles, dg.removed, dg.cut_steps, dg.held_at_faces);
-        diag.flush();
-        if (!probes.empty()) {
-            prob << fmt::format("{:.17g}", sim.time());
-            for (const auto &t : probes) {
-                if (t.probe->kind == Probe::Kind::particle) {
-                    bool found = false;
-                    for (const auto &s : sim.sets())
-                        for (std::size_t k = 0; k < s.n && !found; ++k)
-                            if (s.id[k] == t.particle) {
-                                found = true;
-                                for (int d = 0; d < sc.dim; ++d)
-                                    prob << fmt::format(",{:.17g}",
-                                                        s.x[static_cast<std::size_t>(d)][k]);
-                                for (int d = 0; d < sc.dim; ++d)
-                                    prob << fmt::format(",{:.17g}",
-                                                        s.x[static_cast<std::size_t>(d)][k] -
-                                                            s.x0[static_cast<std::size_t>(d)][k]);
-                                for (int d = 0; d < sc.dim; ++d)
-                                    prob << fmt::format(",{:.17g}",
-                                                        s.v[static_cast<std::size_t>(d)][k]);
-                                for (int c = 0; c < 6; ++c)
-                                    prob << fmt::format(
-                                        ",{:.17g}", s.stress[6 * k + static_cast<std::size_t>(c)]);
-                            }
-                    if (!found) // removed after leaving the grid
-                        for (int c = 0; c < 3 * sc.dim + 6; ++c)
-                            prob << ",nan";
-                } else {
-                    double m = 0.0, x[3] = {0, 0, 0}, v[3] = {0, 0, 0};
-                    for (const auto &s : sim.sets())
-                        for (std::size_t k = 0; k < s.n; ++k)
-                            if (static_cast<std::size_t>(s.group[k]) == t.probe->group) {
-                                m += s.mass[k];
-                                for (int d = 0; d < sc.dim; ++d) {
-                                    x[d] += s.mass[k] * s.x[static_cast<std::size_t>(d)][k];
-                                    v[d] += s.mass[k] * s.v[static_cast<std::size_t>(d)][k];
-                                }
-                            }
-                    for (int d = 0; d < sc.dim; ++d)
-                        prob << fmt::format(",{:.17g}", m > 0 ? x[d] / m : NAN);
-                    for (int d = 0; d < sc.dim; ++d)
-                        prob << fmt::format(",{:.17g}", m > 0 ? v[d] / m : NAN);
-                }
-            }
-            prob << '\n';
-            prob.flush();
-        }
-        if (sc.output.vtk) {
-            const std::string name = fmt::format("particles_{:05d}.vtu", outputs);
-            write_vtu(dir / name, sim, state_fields);
-            pvd.emplace_back(sim.time(), name);
-            // Rewritten after every frame so that a run stopped early still
-            // leaves a valid collection.
-            std::ofstream c(dir / "particles.pvd.tmp");
-            c << "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"1.0\" "
-                 "byte_order=\"LittleEndian\">\n  <Collection>\n";
-            for (const auto &[t, f] : pvd)
-                c << fmt::format("    <DataSet timestep=\"{:.17g}\" part=\"0\" file=\"{}\"/>\n", t,
-                                 f);
-            c << "  </Collection>\n</VTKFile>\n";
-            c.close();
-            fs::rename(dir / "particles.pvd.tmp", dir / "particles.pvd");
-        }
-        ++outputs;
-    };
+    // Now the old files go: a run refused above leaves them as they were.
+    if (fs::exists(dir, ec))
+        for (const auto &e : fs::directory_iterator(dir, ec))
+            if (is_own_file(e.path()) && !fs::remove(e.path(), ec) && ec)
+                throw Error(fmt::format("{}: cannot remove the previous run's file: {}",
+                                        e.path().string(), ec.message()));
+    fs::create_directories(dir, ec);
+    if (ec)
+        throw Error(
+            fmt::format("{}: cannot create the output folder: {}", dir.string(), ec.message()));
+
+    RunOutput out(dir, sc, sim, prep.probe_particles);
+    crash::set_last_action(write_state_after_crash, &out);
+    const ClearLastAction clear_on_exit;
 
     const auto start = std::chrono::steady_clock::now();
     auto elapsed = [&] {
@@ -357,16 +371,12 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     double last_progress = -1.0;
     long particle_steps = 0;
     std::size_t warnings_shown = 0;
-    write_outputs();
+    out.write();
     const double end = sc.end_time;
-    if (opt.progress) {
-        // From the initial state's stable step (or the fixed one): a lower
-        // bound when the material speeds up, said as an estimate.
-        const double dt0 = sc.solver.dt ? *sc.solver.dt : sim.critical_dt();
+    if (opt.progress)
         log << fmt::format("talus: {} particles; about {:.3g} steps of {:.3g} s to t = {:g} s "
                            "(estimated from the initial state)\n",
-                           sim.particle_count(), std::ceil(end / dt0), dt0, end);
-    }
+                           sim.particle_count(), prep.plan.steps, prep.plan.first_dt, end);
     const double every = sc.output.every > 0.0 ? sc.output.every : end;
     // Output k is due at k * every; it is written after the first step that
     // reaches that time (the file and the CSV rows carry the actual time).
@@ -376,12 +386,21 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     auto due = [&] { return std::min(static_cast<double>(next_k) * every, end); };
     // Times within a millionth of a step of a target count as reaching it.
     while (sim.time() < end * (1.0 - 1e-12)) {
-        sim.step(end - sim.time());
+        try {
+            sim.step(end - sim.time());
+        } catch (const Error &e) {
+            throw Error(e.what() + out.write_failure());
+        }
         particle_steps += static_cast<long>(sim.particle_count());
         for (; warnings_shown < sim.warnings().size(); ++warnings_shown)
             log << "talus: warning: " << sim.warnings()[warnings_shown] << '\n';
         if (sim.time() >= due() - 1e-9 * sim.last_dt()) {
-            write_outputs();
+            try {
+                out.write();
+            } catch (const Error &e) {
+                throw Error(fmt::format("{}\nthe run stopped at step {} (t = {:.6g} s)", e.what(),
+                                        sim.steps(), sim.time()));
+            }
             // One file per output time reached, even if a long step passed
             // several of them.
             while (due() <= sim.time() + 1e-9 * sim.last_dt() && due() < end)
@@ -408,7 +427,7 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     rs.seconds = elapsed();
     rs.particles = sim.particle_count();
     rs.particle_steps_per_second = static_cast<double>(particle_steps) / std::max(rs.seconds, 1e-9);
-    rs.outputs = outputs;
+    rs.outputs = out.outputs();
     rs.output_dir = dir;
     return rs;
 }

@@ -98,6 +98,21 @@ double positive(const yaml::Node &n, const char *what) {
     return v;
 }
 
+Origin origin_of(const yaml::Node &n, std::string key = {}) {
+    return Origin{n.where(), key.empty() ? n.path() : std::move(key)};
+}
+
+// A velocity above the speed of light is a typo (or a unit error), and its
+// square overflows the energy diagnostics long before that matters.
+void check_speed(const yaml::Node &n, const Vec3 &v) {
+    constexpr double c_light = 299792458.0;
+    const double speed = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    if (!(speed < c_light))
+        n.fail(fmt::format("a speed of {:g} m/s is not a velocity of a continuum (faster than "
+                           "light); check the value and its units",
+                           speed));
+}
+
 Box read_box(const yaml::Node &n, std::string_view path, int dim) {
     n.expect_map();
     allow(n, path);
@@ -231,6 +246,7 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
     // Grid.
     const yaml::Node grid = root.require("grid");
     allow(grid, "grid");
+    s.grid_origin = origin_of(grid);
     s.origin = vec(grid.require("origin"), s.dim, "m");
     s.size = vec(grid.require("size"), s.dim, "m");
     const yaml::Node cell = grid.require("cell");
@@ -269,6 +285,7 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
         allow(g, "groups.*");
         GroupSpec gs;
         gs.name = name;
+        gs.origin = origin_of(g, "groups." + name);
         const yaml::Node mat = g.require("material");
         const std::string mname = mat.as_string();
         std::vector<std::string> mnames;
@@ -287,21 +304,38 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
                                  guess.empty() ? "" : fmt::format(" (did you mean '{}'?)", guess)));
         }
         gs.shape = read_shape(g.require("shape"), s.dim);
+        gs.shape_origin = origin_of(g.require("shape"), "groups." + name + ".shape");
         if (const yaml::Node ppc = g.get("particles_per_cell"); ppc.defined()) {
             const long long n = ppc.as_integer();
             if (n < 1 || n > 16)
                 ppc.fail(fmt::format("expected 1 <= particles_per_cell <= 16, got {}", n));
             gs.particles_per_cell = static_cast<int>(n);
         }
-        if (const yaml::Node v = g.get("velocity"); v.defined()) gs.velocity = vec(v, s.dim, "m/s");
+        if (const yaml::Node v = g.get("velocity"); v.defined()) {
+            gs.velocity = vec(v, s.dim, "m/s");
+            check_speed(v, gs.velocity);
+        }
         if (const yaml::Node w = g.get("angular_velocity"); w.defined()) {
             if (s.dim == 2)
                 gs.angular_velocity = {0.0, 0.0, w.as_double()};
             else
                 gs.angular_velocity = vec(w, 3, "rad/s");
+            // The fastest point of the rigid rotation: |w| times the largest
+            // distance from the centre of the shape's bounding box.
+            const Box bb = gs.shape.bounds(s.dim);
+            double r2 = 0.0;
+            for (int d = 0; d < s.dim; ++d)
+                r2 += std::pow(0.5 * (bb.max[static_cast<std::size_t>(d)] -
+                                      bb.min[static_cast<std::size_t>(d)]),
+                               2);
+            const Vec3 &wv = gs.angular_velocity;
+            const double wn = std::sqrt(wv[0] * wv[0] + wv[1] * wv[1] + wv[2] * wv[2]);
+            check_speed(w, {wn * std::sqrt(r2), 0.0, 0.0});
         }
-        if (const yaml::Node st = g.get("initial_stress"); st.defined())
+        if (const yaml::Node st = g.get("initial_stress"); st.defined()) {
             gs.stress = read_initial_stress(st);
+            gs.stress_origin = origin_of(st, "groups." + name + ".initial_stress");
+        }
         s.groups.push_back(std::move(gs));
     }
     if (s.groups.empty()) groups.fail("expected at least one group");
@@ -346,12 +380,21 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
         }
     }
 
+    for (const GroupSpec &gs : s.groups)
+        if (gs.stress.kind == InitialStress::Kind::geostatic &&
+            !(s.gravity[static_cast<std::size_t>(s.dim - 1)] < 0.0))
+            throw Error(gs.stress_origin.error(fmt::format(
+                "a geostatic initial stress needs gravity pointing down the last axis ({}), got "
+                "{:g} m/s^2 (set gravity:)",
+                s.dim == 2 ? "y" : "z", s.gravity[static_cast<std::size_t>(s.dim - 1)])));
+
     if (const yaml::Node nv = root.get("nodal_velocities"); nv.defined()) {
         nv.expect_sequence();
         for (std::size_t i = 0; i < nv.size(); ++i) {
             const yaml::Node e = nv.at(i);
             allow(e, "nodal_velocities[]");
             NodalVelocity v;
+            v.origin = origin_of(e, fmt::format("nodal_velocities[{}]", i));
             v.box = read_box(e.require("box"), "nodal_velocities[].box", s.dim);
             v.velocity =
                 read_components(e.require("velocity"), "nodal_velocities[].velocity", s.dim);
@@ -363,7 +406,10 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
         for (std::size_t i = 0; i < pv.size(); ++i) {
             const yaml::Node e = pv.at(i);
             allow(e, "particle_velocities[]");
+            if (i >= kMaxLoads)
+                e.fail(fmt::format("at most {} particle_velocities entries", kMaxLoads));
             ParticleVelocity v;
+            v.origin = origin_of(e, fmt::format("particle_velocities[{}]", i));
             if (const yaml::Node g = e.get("group"); g.defined()) v.group = group_index(g, s);
             if (const yaml::Node b = e.get("box"); b.defined())
                 v.box = read_box(b, "particle_velocities[].box", s.dim);
@@ -378,7 +424,11 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
         for (std::size_t i = 0; i < loads.size(); ++i) {
             const yaml::Node e = loads.at(i);
             allow(e, "loads[]");
+            if (i >= kMaxLoads)
+                e.fail(fmt::format("at most {} loads (combine those on the same particles)",
+                                   kMaxLoads));
             Load l;
+            l.origin = origin_of(e, fmt::format("loads[{}]", i));
             const bool point = e.has("point"), traction = e.has("traction");
             if (point == traction)
                 e.fail("expected exactly one of point (N per particle) or traction (Pa)");
@@ -420,6 +470,9 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
                 p.transfer = choose<Transfer>(t, kinds);
                 if (t.as_string() == "pic") p.alpha = 0.0;
                 if (const yaml::Node a = n.get("alpha"); a.defined()) {
+                    if (t.as_string() == "pic")
+                        a.fail("pic is the blend with alpha = 0; for a FLIP/PIC blend write "
+                               "{type: flip, alpha: A}");
                     if (p.transfer != Transfer::flip)
                         a.fail("alpha applies to the flip transfer only");
                     p.alpha = a.as_double();
@@ -442,7 +495,10 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
             if (!(p.cfl > 0.0 && p.cfl <= 1.0))
                 n.fail(fmt::format("expected 0 < cfl <= 1, got {:g}", p.cfl));
         }
-        if (const yaml::Node n = sv.get("dt"); n.defined()) p.dt = positive(n, "dt (s)");
+        if (const yaml::Node n = sv.get("dt"); n.defined()) {
+            p.dt = positive(n, "dt (s)");
+            p.dt_origin = origin_of(n);
+        }
         if (const yaml::Node n = sv.get("position_update"); n.defined())
             p.second_order_position =
                 choose<bool>(n, {{"first_order", false}, {"second_order", true}});
@@ -456,11 +512,14 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
     const yaml::Node time = root.require("time");
     allow(time, "time");
     s.end_time = positive(time.require("end"), "end (s)");
+    s.end_origin = origin_of(time.require("end"));
 
     if (const yaml::Node out = root.get("output"); out.defined()) {
         allow(out, "output");
-        if (const yaml::Node n = out.get("every"); n.defined())
+        if (const yaml::Node n = out.get("every"); n.defined()) {
             s.output.every = positive(n, "every (s)");
+            s.output.every_origin = origin_of(n);
+        }
         if (const yaml::Node n = out.get("vtk"); n.defined()) s.output.vtk = n.as_bool();
         if (const yaml::Node st = out.get("state"); st.defined()) {
             st.expect_sequence();
@@ -489,6 +548,7 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
                 allow(e, "output.probes[]");
                 Probe p;
                 p.name = e.require("name").as_string();
+                p.origin = origin_of(e, fmt::format("output.probes[{}]", i));
                 const bool part = e.has("particle"), com = e.has("centre_of_mass");
                 if (part == com)
                     e.fail(
@@ -574,6 +634,40 @@ Box GroupShape::bounds(int dim) const {
         return b;
     }
     return b;
+}
+
+double GroupShape::measure(int dim) const {
+    constexpr double pi = 3.14159265358979323846;
+    switch (kind) {
+    case Kind::box: {
+        double m = 1.0;
+        for (int d = 0; d < dim; ++d)
+            m *= box.max[static_cast<std::size_t>(d)] - box.min[static_cast<std::size_t>(d)];
+        return m;
+    }
+    case Kind::sphere:
+        return dim == 2 ? pi * radius * radius : 4.0 / 3.0 * pi * std::pow(radius, 3);
+    case Kind::cylinder: return pi * radius * radius * (zmax - zmin);
+    case Kind::polygon: { // shoelace formula
+        double a = 0.0;
+        for (std::size_t i = 0; i < polygon.size(); ++i) {
+            const auto &p = polygon[i], &q = polygon[(i + 1) % polygon.size()];
+            a += p[0] * q[1] - q[0] * p[1];
+        }
+        return 0.5 * std::abs(a);
+    }
+    }
+    return 0.0;
+}
+
+std::string Origin::error(std::string_view what) const {
+    if (where.empty()) return fmt::format("error: {}", what);
+    return fmt::format("{}: error: '{}' {}", where, key, what);
+}
+
+std::string Origin::warning(std::string_view what) const {
+    if (where.empty()) return fmt::format("warning: {}", what);
+    return fmt::format("{}: warning: '{}' {}", where, key, what);
 }
 
 } // namespace talus

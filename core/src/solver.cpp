@@ -1,5 +1,6 @@
 // The explicit MPM cycle. Equation numbers refer to seed 000 (the MPoint
 // theory manual) unless stated; docs/theory.md has the full account.
+#include <talus/crash_report.hpp>
 #include <talus/solver.hpp>
 #include <talus/stress_rotation.hpp>
 
@@ -207,6 +208,7 @@ struct Simulation::Impl {
     // dilation): one pass over the particles less. An inverted point found
     // there is remembered here and reported by kinematics_and_update.
     bool kinematics_done = false;
+    bool initial_state = false;     // the constructor's call on the initial state
     bool positions_applied = false; // G2P moved the particles (fused USL)
     int inverted_set = -1;
     std::size_t inverted_particle = 0;
@@ -764,6 +766,11 @@ void Simulation::Impl::setup_grid() {
             if (sc.nodal_velocities[k].box.contains(x, dim))
                 prescribed_nodes[k].push_back(static_cast<std::uint32_t>(i));
         }
+    for (std::size_t k = 0; k < sc.nodal_velocities.size(); ++k)
+        if (prescribed_nodes[k].empty())
+            throw Error(sc.nodal_velocities[k].origin.error(fmt::format(
+                "the box holds no grid node (nodes are {:g} m apart{}); enlarge the box", h,
+                face_layer(sc.solver.shape) > 0 ? ", at their Greville points near a face" : "")));
 
     // Slabs across the longest direction; on a tie the slowest-varying
     // index of the cell order, so that a slab's particles are contiguous in
@@ -995,10 +1002,15 @@ void Simulation::Impl::call_material(ParticleSet &s, std::size_t begin, std::siz
     b.state_start = ns ? &s.state[ns * begin] : nullptr;
     b.state_end = ns ? &s.state[ns * begin] : nullptr;
     b.wave_speed = &s.c[begin];
-    const MaterialInstance::Result r = s.instance->update(b);
-    if (r.ok()) return;
     const Scenario &sc = sim.sc_;
     const auto &mat = sc.materials[s.material];
+    // Whom to blame if the plugin crashes (crash_report.hpp).
+    const crash::Task task{mat.name.c_str(),
+                           sc.groups[static_cast<std::size_t>(s.group[begin])].name.c_str(),
+                           initial_state ? 0 : sim.step_ + 1, s.id[begin], s.id[begin + count - 1]};
+    const crash::TaskScope blame(&task);
+    const MaterialInstance::Result r = s.instance->update(b);
+    if (r.ok()) return;
     if (r.status == TALUS_STATUS_CUT_STEP && depth < 8) {
         // Restore the inputs and sub-step this batch.
         std::copy(scr.s0.begin(), scr.s0.end(),
@@ -1292,9 +1304,9 @@ Simulation::Simulation(Scenario &scenario, SolverOptions options)
 #ifdef _OPENMP
     if (opt_.threads > 0) omp_set_num_threads(opt_.threads);
 #endif
-    if (sc_.loads.size() > 32 || sc_.particle_velocities.size() > 32)
-        throw Error(
-            fmt::format("{}: at most 32 loads and 32 particle_velocities entries", sc_.file));
+    if (sc_.loads.size() > kMaxLoads || sc_.particle_velocities.size() > kMaxLoads)
+        throw Error(fmt::format("{}: at most {} loads and {} particle_velocities entries", sc_.file,
+                                kMaxLoads, kMaxLoads));
     impl_->setup_grid();
     Impl &g = *impl_;
     const int D = sc_.dim;
@@ -1343,12 +1355,11 @@ Simulation::Simulation(Scenario &scenario, SolverOptions options)
         double surface = -std::numeric_limits<double>::infinity();
         if (gs.stress.kind == InitialStress::Kind::geostatic) {
             surface = gs.stress.surface.value_or(bb.max[static_cast<std::size_t>(D - 1)]);
-            if (sc_.gravity[static_cast<std::size_t>(D - 1)] >= 0.0)
-                throw Error(
-                    fmt::format("{}: group '{}': a geostatic initial stress needs gravity pointing "
-                                "down the last axis ({}), got {:g}",
-                                sc_.file, gs.name, D == 2 ? "y" : "z",
-                                sc_.gravity[static_cast<std::size_t>(D - 1)]));
+            if (!(sc_.gravity[static_cast<std::size_t>(D - 1)] < 0.0))
+                throw Error(gs.stress_origin.error(
+                    fmt::format("a geostatic initial stress needs gravity pointing down the last "
+                                "axis ({}), got {:g} m/s^2",
+                                D == 2 ? "y" : "z", sc_.gravity[static_cast<std::size_t>(D - 1)])));
         }
         const std::vector<double> q_init = m.spec.initial_state;
         std::size_t made = 0;
@@ -1361,10 +1372,12 @@ Simulation::Simulation(Scenario &scenario, SolverOptions options)
                     for (int d = 0; d < D; ++d) {
                         const std::size_t dd = static_cast<std::size_t>(d);
                         if (x[d] < g.origin[dd] || x[d] > g.origin[dd] + sc_.size[dd])
-                            throw Error(fmt::format(
-                                "{}: group '{}' has particles outside the grid (at "
-                                "{:.6g} in direction {}); enlarge grid.size or move the shape",
-                                sc_.file, gs.name, x[d], "xyz"[d]));
+                            throw Error(gs.shape_origin.error(fmt::format(
+                                "group '{}' has particles outside the grid (at {}= {:.6g} m; "
+                                "the grid spans [{:.6g}, {:.6g}] m); enlarge grid.size or move "
+                                "the shape",
+                                gs.name, "xyz"[d], x[d], g.origin[dd],
+                                g.origin[dd] + sc_.size[dd])));
                     }
                     const std::size_t p = s.n;
                     s.resize(p + 1);
@@ -1436,14 +1449,31 @@ Simulation::Simulation(Scenario &scenario, SolverOptions options)
                     ++made;
                 }
         if (made == 0)
-            throw Error(
-                fmt::format("{}: group '{}' contains no particle: its shape holds no point of the "
+            throw Error(gs.shape_origin.error(
+                fmt::format("group '{}' contains no particle: its shape holds no point of the "
                             "{}-per-cell lattice (make it larger or raise particles_per_cell)",
-                            sc_.file, gs.name, ppc));
+                            gs.name, ppc)));
     }
+    // A load or a fixity that acts on nothing is a mistake in its box or
+    // group, not a no-op.
+    auto selected = [&](std::size_t k, bool load) {
+        for (const ParticleSet &s : sets_)
+            for (std::size_t p = 0; p < s.n; ++p)
+                if (((load ? s.load_mask[p] : s.fix_mask[p]) >> k) & 1u) return true;
+        return false;
+    };
+    for (std::size_t k = 0; k < sc_.loads.size(); ++k)
+        if (!selected(k, true))
+            throw Error(sc_.loads[k].origin.error(
+                "selects no particle (its box and group have no particle in common at t = 0)"));
+    for (std::size_t k = 0; k < sc_.particle_velocities.size(); ++k)
+        if (!selected(k, false))
+            throw Error(sc_.particle_velocities[k].origin.error(
+                "selects no particle (its box and group have no particle in common at t = 0)"));
 
     // The plugins see the initial state once (zero increment) and report
     // their wave speeds; a material that rejects its initial state stops here.
+    impl_->initial_state = true;
     for (auto &s : sets_) {
         const std::size_t B = static_cast<std::size_t>(opt_.batch_size);
         std::string error;
@@ -1452,10 +1482,36 @@ Simulation::Simulation(Scenario &scenario, SolverOptions options)
                                  error, 0);
         if (!error.empty()) throw Error("initial state: " + error);
     }
+    impl_->initial_state = false;
     impl_->sort_particles();
 }
 
 Simulation::~Simulation() = default;
+
+ResourceEstimate estimate_resources(const Scenario &sc) {
+    ResourceEstimate e;
+    const int D = sc.dim;
+    e.nodes = 1.0;
+    double cells = 1.0;
+    for (int d = 0; d < D; ++d) {
+        const double n = std::round(sc.size[static_cast<std::size_t>(d)] / sc.cell);
+        e.nodes *= n + 1 + 2 * kGhostLayers;
+        cells *= n;
+    }
+    // Per node: the two 8-double records (acc, vel); per cell: the bins and
+    // the cell-averaged dilation sums.
+    e.bytes = e.nodes * 2 * 8 * 8 + cells * (4 + (sc.solver.cell_averaged_dilation ? 16 : 0));
+    for (const GroupSpec &g : sc.groups) {
+        const double n = g.shape.measure(D) / std::pow(sc.cell / g.particles_per_cell, D);
+        e.particles += n;
+        const std::uint32_t ns = sc.materials[g.material].spec.model->state_size();
+        // The arrays of ParticleSet (for_each_array, all optional ones
+        // counted), id, group, masks, and the sort's index and cell arrays.
+        const double doubles = 4.0 * D + 3 + 9 + 9 + 2 + 6 + ns + 6 + 1 + 9 + 9 + 1 + 1;
+        e.bytes += n * (doubles * 8 + 8 + 4 + 8 + 16);
+    }
+    return e;
+}
 
 std::size_t Simulation::particle_count() const {
     std::size_t n = 0;
@@ -1483,6 +1539,17 @@ double Simulation::critical_dt() const {
                        : std::numeric_limits<double>::infinity();
 }
 
+void Simulation::check_fixed_dt(double dt_crit) const {
+    if (sc_.solver.dt && *sc_.solver.dt > dt_crit / sc_.solver.cfl)
+        throw Error(sc_.solver.dt_origin.error(fmt::format(
+            "{}: the fixed dt {:.4g} s is above the stability limit h / max(c + |v|) = {:.4g} s, "
+            "where the explicit step is unstable; lower solver.dt below cfl times that "
+            "({:.4g} s), or remove it to let cfl choose each step",
+            step_ == 0 ? std::string("at t = 0")
+                       : fmt::format("step {} (t = {:.6g} s)", step_ + 1, time_),
+            *sc_.solver.dt, dt_crit / sc_.solver.cfl, dt_crit)));
+}
+
 void Simulation::step(double max_dt) {
     Impl &g = *impl_;
     double dt_crit = 0.0;
@@ -1496,11 +1563,16 @@ void Simulation::step(double max_dt) {
     double dt = dt_crit;
     if (sc_.solver.dt) {
         dt = *sc_.solver.dt;
+        // Above h / max(c + |v|) (a Courant number of 1) the explicit step
+        // is unstable and the result is noise: refuse. Between the cfl
+        // margin and that it is the user's call: warn once.
+        check_fixed_dt(dt_crit);
         if (dt > dt_crit && !warned_dt_) {
             warned_dt_ = true;
             warnings_.push_back(
-                fmt::format("step {} (t = {:.6g} s): the fixed dt {:.4g} s exceeds the "
-                            "stability limit cfl h / max(c + |v|) = {:.4g} s",
+                fmt::format("step {} (t = {:.6g} s): the fixed dt {:.4g} s exceeds cfl h / "
+                            "max(c + |v|) = {:.4g} s (below the stability limit, without the cfl "
+                            "margin)",
                             step_ + 1, time_, dt, dt_crit));
         }
     }

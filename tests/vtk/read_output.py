@@ -16,13 +16,20 @@ def fail(msg):
     sys.exit(1)
 
 
-def main(folder, density):
+def names(grid, key):
+    arr = grid.GetFieldData().GetAbstractArray(key)
+    if arr is None:
+        fail(f"no field data '{key}'")
+    return [arr.GetVariantValue(k).ToString() for k in range(arr.GetNumberOfValues())]
+
+
+def main(folder, density, groups, materials):
     rows = list(csv.DictReader(open(f"{folder}/diagnostics.csv")))
     frames = ET.parse(f"{folder}/particles.pvd").getroot().findall(".//DataSet")
     if len(frames) != len(rows):
         fail(f"{len(frames)} frames in the .pvd, {len(rows)} rows in diagnostics.csv")
-    expected = {"id": 1, "group": 1, "displacement": 3, "velocity": 3, "stress": 9, "p": 1, "q": 1,
-                "volume": 1, "J": 1}
+    expected = {"id": 1, "group": 1, "material": 1, "displacement": 3, "velocity": 3, "stress": 9,
+                "p": 1, "q": 1, "volume": 1, "J": 1, "density": 1, "mass": 1, "F": 9}
     for frame, row in zip(frames, rows):
         if abs(float(frame.get("timestep")) - float(row["time"])) > 1e-12:
             fail(f"frame time {frame.get('timestep')} != {row['time']}")
@@ -40,7 +47,26 @@ def main(folder, density):
                 fail(f"{frame.get('file')}: no array '{name}'")
             if arr.GetNumberOfComponents() != comps:
                 fail(f"{name}: {arr.GetNumberOfComponents()} components, expected {comps}")
+        # The name tables, in the order of the scenario file.
+        if names(grid, "group_names") != groups or names(grid, "material_names") != materials:
+            fail(f"name tables {names(grid, 'group_names')}, {names(grid, 'material_names')}; "
+                 f"expected {groups}, {materials}")
+        if abs(grid.GetFieldData().GetArray("TimeValue").GetValue(0) - float(row["time"])) > 1e-12:
+            fail("TimeValue differs from the frame time")
         volume, J, stress = pd.GetArray("volume"), pd.GetArray("J"), pd.GetArray("stress")
+        # density * volume is the particle mass, and the density is rho0 / J
+        # (mass conservation); det F is J.
+        rho, m, F = pd.GetArray("density"), pd.GetArray("mass"), pd.GetArray("F")
+        for i in range(n):
+            if abs(rho.GetValue(i) * volume.GetValue(i) - m.GetValue(i)) > 1e-12 * m.GetValue(i):
+                fail("density * volume differs from mass")
+            if abs(rho.GetValue(i) * J.GetValue(i) - density) > 1e-9 * density:
+                fail("density * J differs from the material density")
+            f = F.GetTuple9(i)
+            det = (f[0] * (f[4] * f[8] - f[5] * f[7]) - f[1] * (f[3] * f[8] - f[5] * f[6])
+                   + f[2] * (f[3] * f[7] - f[4] * f[6]))
+            if abs(det - J.GetValue(i)) > 1e-9:
+                fail(f"det F = {det}, J = {J.GetValue(i)}")
         mass = sum(density * volume.GetValue(i) / J.GetValue(i) for i in range(n))
         if abs(mass - float(row["mass"])) > 1e-9 * mass:
             fail(f"mass {mass} from the VTK file, {row['mass']} in diagnostics.csv")
@@ -59,4 +85,4 @@ def main(folder, density):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], float(sys.argv[2]))
+    main(sys.argv[1], float(sys.argv[2]), sys.argv[3].split(","), sys.argv[4].split(","))

@@ -58,8 +58,4 @@ std::vector<PointRow> run_point_case(const PointCase &pc);
 // CSV: time, eps_*, sig_*, p, q, then one column per state component.
 void write_point_csv(std::ostream &out, const Model &model, const std::vector<PointRow> &rows);
 
-// Writes `content` to `path` atomically: a temporary file beside it renamed
-// over it, so a failed run never leaves a half-written file.
-void write_file_atomically(const std::string &path, const std::string &content);
-
 } // namespace talus

@@ -21,6 +21,18 @@ namespace talus {
 
 using Vec3 = std::array<double, 3>;
 
+// Where an entry of the scenario file came from, so that a problem found
+// after reading (a group outside the grid, a box that selects nothing) is
+// still reported at file:line:column with its key. Empty for scenarios
+// built in code.
+struct Origin {
+    std::string where; // "file:line:column"
+    std::string key;   // "groups.block"
+    // "<where>: error: '<key>' <what>", or "error: <what>" without a place.
+    std::string error(std::string_view what) const;
+    std::string warning(std::string_view what) const;
+};
+
 struct Box {
     Vec3 min{0, 0, 0}, max{0, 0, 0};
     bool contains(const double *x, int dim) const {
@@ -41,6 +53,8 @@ struct GroupShape {
     std::vector<std::array<double, 2>> polygon; // 2D polygon vertices
     bool contains(const double *x, int dim) const;
     Box bounds(int dim) const;
+    // Area (2D) or volume (3D) of the shape, m^2 or m^3.
+    double measure(int dim) const;
 };
 
 struct InitialStress {
@@ -60,6 +74,7 @@ struct GroupSpec {
     // shape's bounding box: rad/s about z in 2D, a vector in 3D.
     Vec3 angular_velocity{0, 0, 0};
     InitialStress stress;
+    Origin origin, shape_origin, stress_origin;
 };
 
 struct NamedMaterial {
@@ -88,12 +103,14 @@ struct FaceCondition {
 struct NodalVelocity { // prescribed grid velocity in a box
     Box box;
     ComponentFunctions velocity;
+    Origin origin;
 };
 
 struct ParticleVelocity { // particle velocity fixity on a group or in a box
     std::optional<std::size_t> group;
     std::optional<Box> box;
     ComponentFunctions velocity;
+    Origin origin;
 };
 
 struct Load {
@@ -101,6 +118,7 @@ struct Load {
     std::optional<std::size_t> group;
     std::optional<Box> box;
     std::array<PiecewiseLinear, 3> value; // force (N) per particle, or traction (Pa)
+    Origin origin;
 };
 
 struct Probe {
@@ -108,6 +126,7 @@ struct Probe {
     std::string name;
     Vec3 point{0, 0, 0};   // particle: the one nearest this point at t = 0
     std::size_t group = 0; // centre_of_mass
+    Origin origin;
 };
 
 enum class Scheme { usl, usf, musl, usavg };
@@ -121,6 +140,7 @@ struct SolverSpec {
     ShapeKind shape = ShapeKind::bspline2;
     double cfl = 0.3;
     std::optional<double> dt; // fixed time step
+    Origin dt_origin;
     bool second_order_position = false;
     bool cell_averaged_dilation = false;
     LeavePolicy leave = LeavePolicy::stop;
@@ -132,6 +152,7 @@ struct OutputSpec {
     std::vector<std::string> state_fields; // plugin state variables to write; empty: those flagged
     bool all_flagged_state = true;
     std::vector<Probe> probes;
+    Origin every_origin;
 };
 
 struct Scenario {
@@ -150,7 +171,12 @@ struct Scenario {
     SolverSpec solver;
     double end_time = 0.0;
     OutputSpec output;
+    Origin grid_origin, end_origin;
 };
+
+// At most this many loads and particle_velocities entries (each particle
+// records its own in a 32-bit mask).
+inline constexpr std::size_t kMaxLoads = 32;
 
 // Reads and validates a scenario; loads the plugins it needs into
 // `registry` and creates every material instance. Throws talus::Error with

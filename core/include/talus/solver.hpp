@@ -71,6 +71,16 @@ struct Diagnostics {
     double held_depth = 0.0; // the deepest such crossing, m
 };
 
+// What a scenario will need, from its input alone: checked before anything
+// is allocated, so that a grid or a particle count that cannot fit is
+// refused with numbers instead of failing inside the allocator.
+struct ResourceEstimate {
+    double particles = 0.0; // from the groups' areas (2D) or volumes (3D)
+    double nodes = 0.0;     // including the ghost layers
+    double bytes = 0.0;     // particle and grid arrays
+};
+ResourceEstimate estimate_resources(const Scenario &scenario);
+
 struct SolverOptions {
     int threads = 0;      // 0: OpenMP's default
     int batch_size = 128; // points per plugin call
@@ -100,6 +110,11 @@ class Simulation {
     double last_dt() const { return last_dt_; }
     // dt = cfl h / max(c_p + |v_p|) for the current state (seed 000 eq. 45).
     double critical_dt() const;
+    // Throws (located at solver.dt) if a fixed dt is above the stability
+    // limit h / max(c + |v|), i.e. critical_dt() / cfl: an unstable step.
+    // step() checks this every step; with no argument, for the current state.
+    void check_fixed_dt(double dt_crit) const;
+    void check_fixed_dt() const { check_fixed_dt(critical_dt()); }
     Diagnostics diagnostics() const;
     const std::vector<ParticleSet> &sets() const { return sets_; }
     std::vector<ParticleSet> &sets() { return sets_; }

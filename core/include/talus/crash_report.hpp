@@ -1,0 +1,59 @@
+// Who to blame when a plugin crashes. A plugin runs inside the talus process;
+// a segmentation fault (or abort, bus error, illegal instruction, floating-
+// point trap) in it would end the run with no word. The plugin loader marks
+// every call into a plugin with the model and library, the solver adds which
+// material, group, particles and step; a fatal-signal handler prints that
+// (async-signal-safe), runs one best-effort last action (the run writes the
+// state at that moment), and exits with 128 + the signal number.
+#pragma once
+
+#include <cstdint>
+
+namespace talus::crash {
+
+// What the caller of a plugin is doing. Pointers must outlive the call.
+struct Task {
+    const char *material = nullptr; // scenario material name
+    const char *group = nullptr;    // group of the first particle of the batch
+    long step = 0;                  // the step being computed (0: initial state)
+    std::int64_t first_id = -1, last_id = -1;
+};
+
+// Marks the current thread as inside a call to `model` of `library` (and
+// `task`, when given) for its lifetime. Costs a few stores; no allocation.
+class PluginCall {
+  public:
+    PluginCall(const char *model, const char *library) noexcept;
+    ~PluginCall();
+    PluginCall(const PluginCall &) = delete;
+    PluginCall &operator=(const PluginCall &) = delete;
+    const char *model() const { return model_; }
+    const char *library() const { return library_; }
+
+  private:
+    const char *model_, *library_;
+    const PluginCall *saved_;
+};
+
+// Marks the current thread's plugin calls with `task` for its lifetime.
+class TaskScope {
+  public:
+    explicit TaskScope(const Task *task) noexcept;
+    ~TaskScope();
+    TaskScope(const TaskScope &) = delete;
+    TaskScope &operator=(const TaskScope &) = delete;
+
+  private:
+    const Task *saved_;
+};
+
+// Installs the fatal-signal handlers (process-wide; once is enough).
+void install_handlers();
+
+// The one thing to try after the report, e.g. writing the state. It runs
+// inside the signal handler, so it may fail or hang: it gets a time limit,
+// and a second fault inside it ends the process at once. nullptr clears it.
+using LastAction = void (*)(void *context);
+void set_last_action(LastAction action, void *context) noexcept;
+
+} // namespace talus::crash
