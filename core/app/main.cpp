@@ -234,7 +234,9 @@ int main(int argc, char **argv) {
                                   "`talus {}` reads; run it with `talus run {}` or check it with "
                                   "`talus validate {}`",
                                   file, command, file, file)
-                    : fmt::format("{}: this is a material-point driver case (it has path:), not "
+                    : fmt::format("{}: this is a material-point driver case (it has material:, not "
+                                  "materials: and "
+                                  "groups:), not "
                                   "what `talus {}` reads; run it with `talus point {}`",
                                   file, command, file));
         };

@@ -1373,7 +1373,7 @@ Simulation::Simulation(Scenario &scenario, SolverOptions options)
                         const std::size_t dd = static_cast<std::size_t>(d);
                         if (x[d] < g.origin[dd] || x[d] > g.origin[dd] + sc_.size[dd])
                             throw Error(gs.shape_origin.error(fmt::format(
-                                "group '{}' has particles outside the grid (at {}= {:.6g} m; "
+                                "group '{}' has particles outside the grid (at {} = {:.6g} m; "
                                 "the grid spans [{:.6g}, {:.6g}] m); enlarge grid.size or move "
                                 "the shape",
                                 gs.name, "xyz"[d], x[d], g.origin[dd],
