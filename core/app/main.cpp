@@ -69,8 +69,9 @@ void print_model(std::ostream &out, const Model &m) {
 }
 
 void print_library(std::ostream &out, const PluginLibrary &lib) {
-    out << fmt::format("library {} {} (material ABI {}.{})\n  {}\n", lib.name(), lib.version(),
-                       lib.abi_major(), lib.abi_minor(), lib.path().string());
+    out << fmt::format("library {} {} (material ABI {}.{})\n  {}\n  build: {}\n", lib.name(),
+                       lib.version(), lib.abi_major(), lib.abi_minor(), lib.path().string(),
+                       lib.build_text());
     for (const Model &m : lib.models()) {
         out << '\n';
         print_model(out, m);
@@ -306,8 +307,9 @@ int main(int argc, char **argv) {
             } catch (const talus::Error &) {
             }
             const talus::Model &m = registry.find_model(info_target);
-            std::cout << fmt::format("(from {} {}, {})\n\n", m.library().name(),
-                                     m.library().version(), m.library().path().string());
+            std::cout << fmt::format("(from {} {}, {}; build: {})\n\n", m.library().name(),
+                                     m.library().version(), m.library().path().string(),
+                                     m.library().build_text());
             print_model(std::cout, m);
             return 0;
         }

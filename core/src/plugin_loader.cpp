@@ -12,6 +12,8 @@
 #include <cstddef>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
+#include <iterator>
 #include <set>
 
 #ifndef TALUS_VERSION_STRING
@@ -164,6 +166,36 @@ talus_error fresh_error() {
 
 // -------------------------------------------------------- PluginLibrary --
 
+namespace {
+
+// The SDK's build string in the library file (TALUS_SDK_BUILD_INFO).
+PluginLibrary::Build read_build_info(const fs::path &file) {
+    PluginLibrary::Build b;
+    std::ifstream in(file, std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string key = "TALUS_BUILD_INFO optimised=";
+    const auto at = bytes.find(key);
+    if (at == std::string::npos || at + key.size() + 11 > bytes.size()) return b;
+    const std::string rest = bytes.substr(at + key.size(), 11); // "1 asserts=0"
+    if (rest.compare(1, 9, " asserts=") != 0) return b;
+    b.known = true;
+    b.optimised = rest[0] == '1';
+    b.asserts = rest[10] == '1';
+    return b;
+}
+
+} // namespace
+
+std::string PluginLibrary::build_text() const {
+    if (!build_.known) return "unknown (not built with the Talus SDK's TALUS_MATERIAL_LIBRARY)";
+    return fmt::format("{}, assertions {}{}",
+                       build_.optimised ? "optimised" : "NOT optimised (-O0)",
+                       build_.asserts ? "on" : "off",
+                       build_.optimised ? ""
+                                        : ": expect it to run about ten times slower; rebuild it "
+                                          "with CMAKE_BUILD_TYPE=Release");
+}
+
 std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
     std::error_code ec;
     if (!fs::exists(file, ec))
@@ -179,6 +211,7 @@ std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
     std::shared_ptr<PluginLibrary> lib(new PluginLibrary());
     lib->handle_ = handle;
     lib->path_ = file;
+    lib->build_ = read_build_info(file);
 
     dlerror();
     void *sym = dlsym(handle, TALUS_MATERIAL_ENTRY_SYMBOL);

@@ -105,6 +105,15 @@ Prepared prepare_run(Scenario &sc, const SolverOptions &solver) {
             fmt::format("the run needs about {} of memory, more than is available now ({} of {})",
                         bytes_text(plan.estimate.bytes), bytes_text(plan.memory_available),
                         bytes_text(plan.memory_total)));
+    for (const NamedMaterial &m : sc.materials) {
+        const PluginLibrary &lib = m.spec.model->library();
+        if (lib.build().known && !lib.build().optimised)
+            plan.notes.push_back(fmt::format(
+                "warning: material '{}': the plugin {} was built without optimisation (-O0); "
+                "expect it to run about ten times slower (rebuild it with "
+                "CMAKE_BUILD_TYPE=Release)",
+                m.name, lib.path().string()));
+    }
     out.sim = std::make_unique<Simulation>(sc, solver);
     const Simulation &sim = *out.sim;
     plan.particles = sim.particle_count();

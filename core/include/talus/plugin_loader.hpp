@@ -100,6 +100,15 @@ class PluginLibrary : public std::enable_shared_from_this<PluginLibrary> {
     const std::vector<Model> &models() const { return models_; }
     const Model *find(const std::string &id) const;
 
+    // How the library was compiled, from the string the SDK embeds
+    // (TALUS_SDK_BUILD_INFO); unknown for plugins written without the SDK.
+    struct Build {
+        bool known = false, optimised = false, asserts = false;
+    };
+    const Build &build() const { return build_; }
+    // "optimised, assertions off", "NOT optimised (-O0), ...", or "unknown".
+    std::string build_text() const;
+
   private:
     PluginLibrary() = default;
     friend class Model;
@@ -108,6 +117,7 @@ class PluginLibrary : public std::enable_shared_from_this<PluginLibrary> {
     std::string name_, version_;
     std::uint32_t abi_major_ = 0, abi_minor_ = 0;
     std::vector<Model> models_;
+    Build build_;
 };
 
 // One material: a model with one set of parameter values. Owns the plugin's

@@ -493,9 +493,27 @@ struct Library {
 } // namespace detail
 } // namespace talus::sdk
 
+// How the plugin was compiled, as a string in the library file that `talus
+// plugin info` and `talus run` read (a plugin built at -O0 runs about ten
+// times slower, and nothing else would tell). Not part of the ABI: a plugin
+// without it is simply reported as "build unknown".
+#if defined(__OPTIMIZE__)
+#define TALUS_SDK_BUILD_OPTIMISED "1"
+#else
+#define TALUS_SDK_BUILD_OPTIMISED "0"
+#endif
+#if defined(NDEBUG)
+#define TALUS_SDK_BUILD_ASSERTS "0"
+#else
+#define TALUS_SDK_BUILD_ASSERTS "1"
+#endif
+#define TALUS_SDK_BUILD_INFO                                                                       \
+    "TALUS_BUILD_INFO optimised=" TALUS_SDK_BUILD_OPTIMISED " asserts=" TALUS_SDK_BUILD_ASSERTS
+
 // Defines the exported entry point of a plugin library holding the given
 // model classes. Use once per shared library, at namespace scope.
 #define TALUS_MATERIAL_LIBRARY(LIB_NAME, LIB_VERSION, ...)                                         \
+    [[gnu::used]] static const char talus_build_info_[] = TALUS_SDK_BUILD_INFO;                    \
     TALUS_PLUGIN_EXPORT std::int32_t talus_material_entry(                                         \
         const talus_host_info *host, const talus_library **library, talus_error *error) {          \
         return ::talus::sdk::detail::Library<__VA_ARGS__>::entry(LIB_NAME, LIB_VERSION, host,      \
