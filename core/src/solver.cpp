@@ -94,6 +94,9 @@ struct Simulation::Impl {
     //   acc: [0] mass, [1..3] momentum, [4..6] force (P2G accumulators)
     //   vel: [0..2] v at the start of the step, [4..6] v~ at its end
     static constexpr std::size_t kRec = 8, kM = 0, kP = 1, kF = 4, kV0 = 0, kV1 = 4;
+    // acc [7]: bit k set when a particle of particle_velocities[k] reaches
+    // the node (exact in a double: 32 bits)
+    static constexpr std::size_t kFix = 7;
     std::vector<double> acc, vel;
 
     // Nodes on or beyond each face (x-, x+, y-, y+, z-, z+).
@@ -476,10 +479,16 @@ void p2g_pass(Simulation::Impl &g, const double *grav) {
                         for (int d = 0; d < D; ++d)
                             fext[d] += m * grav[d];
                     }
+                    const std::uint32_t fixed = Mass ? s.fix_mask[p] : 0u;
                     for (int q = 0; q < St::NN; ++q) {
                         double *rec = acc + Impl::kRec * st.idx[q];
                         const double mw = m * st.w[q];
                         if constexpr (Mass) rec[Impl::kM] += mw;
+                        // The nodes a fixed particle reaches carry its
+                        // fixity (apply_bc): a constraint the grid sees.
+                        if (fixed && st.w[q] > 0.0) [[unlikely]]
+                            rec[Impl::kFix] = static_cast<double>(
+                                static_cast<std::uint32_t>(rec[Impl::kFix]) | fixed);
                         for (int d = 0; d < D; ++d) {
                             if constexpr (Momentum) {
                                 double vq = vp[d];
@@ -930,6 +939,30 @@ void Simulation::Impl::apply_bc(double *field, std::size_t offset, double t_eval
                 for (std::uint32_t i : prescribed_nodes[k])
                     V(i)[d] = v;
             }
+    // Particle fixities act on the grid too: every node a fixed particle
+    // reaches moves as prescribed, so the body attached to those particles
+    // is held through the grid (a fixity on the particles alone would keep
+    // them in place while the grid, and the rest of the body, moved on).
+    // The constrained zone is the fixed particles plus one kernel support.
+    const auto &fixes = sc.particle_velocities;
+    if (fixes.empty()) return;
+    double value[kMaxLoads][3];
+    for (std::size_t k = 0; k < fixes.size(); ++k)
+        for (int d = 0; d < dim; ++d)
+            if (const auto &fn = fixes[k].velocity.c[static_cast<std::size_t>(d)])
+                value[k][d] = (*fn)(t_eval);
+    const std::ptrdiff_t N = static_cast<std::ptrdiff_t>(n_nodes);
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t ii = 0; ii < N; ++ii) {
+        const std::uint32_t i = static_cast<std::uint32_t>(ii);
+        std::uint32_t mask = static_cast<std::uint32_t>(acc[kRec * i + kFix]);
+        while (mask) {
+            const std::size_t k = static_cast<std::size_t>(__builtin_ctz(mask));
+            mask &= mask - 1;
+            for (int d = 0; d < dim; ++d)
+                if (fixes[k].velocity.c[static_cast<std::size_t>(d)]) V(i)[d] = value[k][d];
+        }
+    }
 }
 
 // Phase 2: v = p / m (eq. 30) with the boundary conditions at t; with
