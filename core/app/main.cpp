@@ -270,7 +270,7 @@ int main(int argc, char **argv) {
             const talus::Prepared prep = talus::prepare_run(sc, {});
             const talus::RunPlan &plan = prep.plan;
             for (const std::string &n : plan.notes)
-                std::cerr << "talus: " << n << '\n';
+                std::cerr << n << '\n';
             for (const std::string &w : plan.over_limits)
                 std::cerr << w << " (`talus run` refuses this unless --allow-large)\n";
             std::cout << fmt::format(

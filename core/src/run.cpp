@@ -108,11 +108,12 @@ Prepared prepare_run(Scenario &sc, const SolverOptions &solver) {
     for (const NamedMaterial &m : sc.materials) {
         const PluginLibrary &lib = m.spec.model->library();
         if (lib.build().known && !lib.build().optimised)
-            plan.notes.push_back(fmt::format(
-                "warning: material '{}': the plugin {} was built without optimisation (-O0); "
-                "expect it to run about ten times slower (rebuild it with "
-                "CMAKE_BUILD_TYPE=Release)",
-                m.name, lib.path().string()));
+            plan.notes.push_back(
+                fmt::format("talus: warning: material '{}': the plugin {} was built without "
+                            "optimisation (-O0); "
+                            "expect it to run about ten times slower (rebuild it with "
+                            "CMAKE_BUILD_TYPE=Release)",
+                            m.name, lib.path().string()));
     }
     out.sim = std::make_unique<Simulation>(sc, solver);
     const Simulation &sim = *out.sim;
@@ -120,11 +121,13 @@ Prepared prepare_run(Scenario &sc, const SolverOptions &solver) {
     out.probe_particles = probe_particles(sc, sim);
     const double dt_crit = sim.critical_dt();
     sim.check_fixed_dt(dt_crit);
-    if (sc.solver.dt && *sc.solver.dt > dt_crit)
+    if (sc.solver.dt && *sc.solver.dt > dt_crit) {
+        out.sim->fixed_dt_warning_given();
         plan.notes.push_back(sc.solver.dt_origin.warning(fmt::format(
             "the fixed dt {:.4g} s exceeds cfl h / max(c + |v|) = {:.4g} s at t = 0: below the "
             "stability limit ({:.4g} s) but without the cfl margin",
             *sc.solver.dt, dt_crit, dt_crit / sc.solver.cfl)));
+    }
     plan.first_dt = sc.solver.dt ? *sc.solver.dt : dt_crit;
     plan.steps = std::ceil(sc.end_time / plan.first_dt);
     if (sc.output.vtk) {
@@ -348,7 +351,7 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     Prepared prep = prepare_run(sc, opt.solver);
     Simulation &sim = *prep.sim;
     for (const std::string &n : prep.plan.notes)
-        log << "talus: " << n << '\n';
+        log << n << '\n';
     if (!prep.plan.over_limits.empty()) {
         std::string all;
         for (const std::string &w : prep.plan.over_limits)

@@ -115,6 +115,9 @@ class Simulation {
     // step() checks this every step; with no argument, for the current state.
     void check_fixed_dt(double dt_crit) const;
     void check_fixed_dt() const { check_fixed_dt(critical_dt()); }
+    // The caller has told the user that the fixed dt exceeds the cfl margin
+    // (talus run's plan): step() does not warn again.
+    void fixed_dt_warning_given() { warned_dt_ = true; }
     Diagnostics diagnostics() const;
     const std::vector<ParticleSet> &sets() const { return sets_; }
     std::vector<ParticleSet> &sets() { return sets_; }
