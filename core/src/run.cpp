@@ -101,10 +101,10 @@ Prepared prepare_run(Scenario &sc, const SolverOptions &solver) {
     RunPlan &plan = out.plan;
     plan.estimate = check_memory(sc, plan.memory_total, plan.memory_available);
     if (plan.memory_available > 0.0 && plan.estimate.bytes > plan.memory_available)
-        plan.notes.push_back(
-            fmt::format("the run needs about {} of memory, more than is available now ({} of {})",
-                        bytes_text(plan.estimate.bytes), bytes_text(plan.memory_available),
-                        bytes_text(plan.memory_total)));
+        plan.notes.push_back(fmt::format(
+            "talus: note: the run needs about {} of memory, more than is available now ({} of {})",
+            bytes_text(plan.estimate.bytes), bytes_text(plan.memory_available),
+            bytes_text(plan.memory_total)));
     for (const NamedMaterial &m : sc.materials) {
         const PluginLibrary &lib = m.spec.model->library();
         if (lib.build().known && !lib.build().optimised)
