@@ -79,15 +79,16 @@ void print_library(std::ostream &out, const PluginLibrary &lib) {
 }
 
 // A YAML file handed to the wrong command: say what it is and which command
-// wants it. A scenario has groups:, a driver case has a path: (and no
-// groups:); anything else is left to the command's own reader.
+// wants it. A scenario has groups: or grid:; a driver case has strain:, or
+// material: without materials:; anything else is left to the command's own
+// reader.
 enum class YamlKind { other, scenario, point_case };
 YamlKind yaml_kind(const std::string &file) {
     try {
         const YAML::Node n = YAML::LoadFile(file);
         if (!n.IsMap()) return YamlKind::other;
         if (n["groups"] || n["grid"]) return YamlKind::scenario;
-        if (n["path"] || (n["material"] && !n["materials"])) return YamlKind::point_case;
+        if (n["strain"] || (n["material"] && !n["materials"])) return YamlKind::point_case;
     } catch (const std::exception &) {
     }
     return YamlKind::other;

@@ -380,14 +380,6 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
         }
     }
 
-    for (const GroupSpec &gs : s.groups)
-        if (gs.stress.kind == InitialStress::Kind::geostatic &&
-            !(s.gravity[static_cast<std::size_t>(s.dim - 1)] < 0.0))
-            throw Error(gs.stress_origin.error(fmt::format(
-                "a geostatic initial stress needs gravity pointing down the last axis ({}), got "
-                "{:g} m/s^2 (set gravity:)",
-                s.dim == 2 ? "y" : "z", s.gravity[static_cast<std::size_t>(s.dim - 1)])));
-
     if (const yaml::Node nv = root.get("nodal_velocities"); nv.defined()) {
         nv.expect_sequence();
         for (std::size_t i = 0; i < nv.size(); ++i) {

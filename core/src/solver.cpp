@@ -1391,7 +1391,7 @@ Simulation::Simulation(Scenario &scenario, SolverOptions options)
             if (!(sc_.gravity[static_cast<std::size_t>(D - 1)] < 0.0))
                 throw Error(gs.stress_origin.error(
                     fmt::format("a geostatic initial stress needs gravity pointing down the last "
-                                "axis ({}), got {:g} m/s^2",
+                                "axis ({}), got {:g} m/s^2 (set gravity:)",
                                 D == 2 ? "y" : "z", sc_.gravity[static_cast<std::size_t>(D - 1)])));
         }
         const std::vector<double> q_init = m.spec.initial_state;
@@ -1537,11 +1537,15 @@ ResourceEstimate estimate_resources(const Scenario &sc) {
     for (const GroupSpec &g : sc.groups) {
         const double n = g.shape.measure(D) / std::pow(sc.cell / g.particles_per_cell, D);
         e.particles += n;
-        const std::uint32_t ns = sc.materials[g.material].spec.model->state_size();
-        // The arrays of ParticleSet (for_each_array, all optional ones
-        // counted), id, group, masks, and the sort's index and cell arrays.
-        const double doubles = 4.0 * D + 3 + 9 + 9 + 2 + 6 + ns + 6 + 1 + 9 + 9 + 1 + 1;
-        e.bytes += n * (doubles * 8 + 8 + 4 + 8 + 16);
+        // The per-particle arrays of a set of this material, every optional
+        // one counted (for_each_array, the list resize() uses), then id,
+        // group, the two masks and the sort's index and cell arrays.
+        ParticleSet probe;
+        probe.dim = D;
+        probe.state_size = sc.materials[g.material].spec.model->state_size();
+        std::size_t doubles = 0;
+        for_each_array(probe, [&](auto &, std::size_t stride) { doubles += stride; });
+        e.bytes += n * (static_cast<double>(doubles) * 8 + 8 + 4 + 8 + 16);
     }
     return e;
 }

@@ -65,7 +65,7 @@ void write_vtu(const fs::path &file, const Simulation &sim,
     const std::size_t n = sim.particle_count();
     std::vector<VtkArray> point_data;
     // add() hands out references into point_data: no reallocation allowed.
-    point_data.reserve(14 + state_fields.size());
+    point_data.reserve(13 + state_fields.size()); // the 13 fixed arrays below
     auto add = [&](const std::string &name, const std::string &type, int comps) -> VtkArray & {
         point_data.push_back(VtkArray{name, type, comps, {}});
         point_data.back().bytes.reserve(n * static_cast<std::size_t>(comps) * 8);
@@ -102,7 +102,12 @@ void write_vtu(const fs::path &file, const Simulation &sim,
     }
     VtkArray points{"Points", "Float64", 3, {}};
     for (const ParticleSet &s : sim.sets()) {
-        const Model &model = *sc.materials[s.material].spec.model;
+        // Where each written state field sits in this material's state
+        // vector (nullptr: the material has no such variable).
+        std::vector<const StateInfo *> info(sf.size(), nullptr);
+        for (std::size_t f = 0; f < sf.size(); ++f)
+            for (const auto &v : sc.materials[s.material].spec.model->state())
+                if (v.name == sf[f].name) info[f] = &v;
         for (std::size_t p = 0; p < s.n; ++p) {
             id.put<std::int64_t>(s.id[p]);
             grp.put<std::int32_t>(s.group[p]);
@@ -127,14 +132,12 @@ void write_vtu(const fs::path &file, const Simulation &sim,
             mass.put<double>(s.mass[p]);
             for (int a = 0; a < 9; ++a) // row-major, as VTK reads a 3x3 tensor
                 F.put<double>(s.F[9 * p + static_cast<std::size_t>(a)]);
-            for (const StateField &f : sf) {
-                const StateInfo *info = nullptr;
-                for (const auto &v : model.state())
-                    if (v.name == f.name) info = &v;
-                for (std::uint32_t k = 0; k < f.size; ++k)
-                    point_data[f.array].put<double>(
-                        info && k < info->size ? s.state[s.state_size * p + info->offset + k]
-                                               : std::numeric_limits<double>::quiet_NaN());
+            for (std::size_t f = 0; f < sf.size(); ++f) {
+                const StateInfo *in = info[f];
+                for (std::uint32_t k = 0; k < sf[f].size; ++k)
+                    point_data[sf[f].array].put<double>(
+                        in && k < in->size ? s.state[s.state_size * p + in->offset + k]
+                                           : std::numeric_limits<double>::quiet_NaN());
             }
         }
     }

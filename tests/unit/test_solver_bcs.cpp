@@ -404,9 +404,10 @@ TEST(MaterialFailure, InversionReportsTheFailingJacobian) {
 // grid, the tip moved 0.23 m in 0.3 s and the plate's centre of mass left at
 // 1.8 m/s. Reference: a bar fixed at one end under a step end load; the end
 // displacement oscillates between 0 and 2 sigma L / E (dynamic factor 2,
-// undamped). The clamped zone reaches one kernel support (up to 1.5 cells)
-// past the fixed column, so the free length L is between 1 - 0.025 - 2 h and
-// 1 m: that range, not a fitted number, is the tolerance.
+// undamped); measured 0.0009 .. 0.0186 m in every scheme. The clamped zone
+// reaches one kernel support (up to 1.5 cells) past the fixed column, so the
+// free length L is between 1 - 0.025 - 2 h and 1 m: that range, not a fitted
+// number, is the tolerance on the peak.
 TEST(ParticleFixity, HoldsTheBodyAgainstALoad) {
     for (const char *scheme : {"usl", "usf", "musl"}) {
         auto s = sim_from_text(
@@ -423,30 +424,32 @@ TEST(ParticleFixity, HoldsTheBodyAgainstALoad) {
                         "solver: {scheme: ") +
             scheme + "}\ntime: {end: 1}\n");
         const auto &set = s->sim->sets()[0];
-        std::vector<std::size_t> tip, root;
-        for (std::size_t p = 0; p < set.n; ++p) {
+        std::vector<std::size_t> tip;
+        for (std::size_t p = 0; p < set.n; ++p)
             if (set.x[0][p] > 1.275) tip.push_back(p);
-            if (set.x[0][p] < 0.325) root.push_back(p);
-        }
         ASSERT_FALSE(tip.empty());
-        ASSERT_FALSE(root.empty());
         const std::int64_t tip_id = set.id[tip[0]];
         const double x0 = set.x[0][tip[0]];
-        double lo = 0.0, hi = 0.0;
-        // 0.3 s: two and a half periods 4 L / c of the fixed-free bar.
+        // hi: the largest tip displacement; lo: the smallest after the
+        // first period 4 L / c = 0.127 s (c = sqrt(E / rho) = 31.6 m/s).
+        double lo = 1.0, hi = 0.0;
+        // 0.3 s: two and a half periods of the fixed-free bar.
         advance(*s->sim, 0.3, [&] {
             const auto &st = s->sim->sets()[0];
             for (std::size_t p = 0; p < st.n; ++p)
                 if (st.id[p] == tip_id) {
-                    lo = std::min(lo, st.x[0][p] - x0);
                     hi = std::max(hi, st.x[0][p] - x0);
+                    if (s->sim->time() > 0.13) lo = std::min(lo, st.x[0][p] - x0);
                 }
         });
         const double sL_E = 1.0e4 / 1.0e6; // sigma L / E for L = 1 m
         EXPECT_GT(hi, 2.0 * sL_E * (1.0 - 0.025 - 2 * 0.05)) << scheme;
         EXPECT_LT(hi, 2.0 * sL_E) << scheme;
-        // The tip never goes back past its start by more than a small part
-        // of the amplitude (10 %: the wave's dispersion on the grid).
-        EXPECT_GT(lo, -0.1 * 2.0 * sL_E) << scheme;
+        // Held, not drifting: after a period the tip comes back towards its
+        // start. The exact minimum is 0; the bound is a quarter of the
+        // amplitude, so it passes with the wave's dispersion on this coarse
+        // grid (the peak is smeared) and fails for any drift of more than
+        // half the static elongation.
+        EXPECT_LT(lo, 0.25 * 2.0 * sL_E) << scheme;
     }
 }
