@@ -491,9 +491,24 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
             p.dt = positive(n, "dt (s)");
             p.dt_origin = origin_of(n);
         }
-        if (const yaml::Node n = sv.get("position_update"); n.defined())
+        // The particles move with the grid velocity field whose gradient
+        // advanced F in the step (docs/theory.md, "Kinematic consistency"):
+        // USF has only the start field when it updates the stress, USAVG
+        // uses both halves, so each has one position update.
+        p.second_order_position = p.scheme == Scheme::usavg;
+        if (const yaml::Node n = sv.get("position_update"); n.defined()) {
             p.second_order_position =
                 choose<bool>(n, {{"first_order", false}, {"second_order", true}});
+            if (p.scheme == Scheme::usf && p.second_order_position)
+                n.fail("usf updates the stress from the start-of-step grid velocities, before the "
+                       "forces are known, and moves the particles with the same velocities, so "
+                       "its position update is first_order; second_order needs usl, musl or "
+                       "usavg");
+            if (p.scheme == Scheme::usavg && !p.second_order_position)
+                n.fail("usavg advances the deformation half with the start and half with the "
+                       "updated grid velocities, and moves the particles with their mean, so its "
+                       "position update is second_order; first_order needs usl, musl or usf");
+        }
         if (const yaml::Node n = sv.get("cell_averaged_dilation"); n.defined())
             p.cell_averaged_dilation = n.as_bool();
         if (const yaml::Node n = sv.get("leaving_grid"); n.defined())

@@ -79,6 +79,14 @@ void ParticleSet::move(std::size_t from, std::size_t to) {
 
 // ------------------------------------------------------------------ Impl --
 
+namespace {
+// USL with first-order positions and no cell averaging does its kinematics
+// inside the velocity G2P: no stored gradient or position step.
+bool fused_usl(const SolverSpec &sv) {
+    return sv.scheme == Scheme::usl && !sv.cell_averaged_dilation;
+}
+} // namespace
+
 struct Simulation::Impl {
     Simulation &sim;
     int dim = 2;
@@ -140,7 +148,10 @@ struct Simulation::Impl {
     void (*p2g)(Impl &, bool mass_momentum, bool forces, bool remap, double t) = nullptr;
     // kin_dt > 0: also do the kinematics over kin_dt (fused USL path).
     void (*g2p_motion)(Impl &, double dt, bool gradient, double kin_dt) = nullptr;
-    void (*g2p_gradient)(Impl &, const double *field, std::size_t offset) = nullptr;
+    // pos_dt > 0: also the position step over pos_dt from the velocity at
+    // pos_offset of the same records.
+    void (*g2p_gradient)(Impl &, const double *field, std::size_t offset, std::size_t pos_offset,
+                         double pos_dt) = nullptr;
 
     explicit Impl(Simulation &s) : sim(s) {}
 
@@ -213,6 +224,13 @@ struct Simulation::Impl {
     bool kinematics_done = false;
     bool initial_state = false;     // the constructor's call on the initial state
     bool positions_applied = false; // G2P moved the particles (fused USL)
+    // Kinematic consistency (docs/theory.md): each particle moves with the
+    // interpolated grid velocity field whose gradient advances its F. In
+    // USL and USAVG that field comes out of the velocity G2P (v~, or the
+    // mean of v and v~); in USF and MUSL the gradient pass writes the
+    // position step and the velocity G2P leaves it alone.
+    bool motion_moves_particles = true;
+    bool trapezoid_positions = false; // x += dt (v + v~) / 2
     int inverted_set = -1;
     std::size_t inverted_particle = 0;
     std::string inversion_message(const ParticleSet &s, std::size_t p, double t) const {
@@ -546,6 +564,22 @@ void p2g_kernel(Simulation::Impl &g, bool mass_momentum, bool forces, bool remap
     }
 }
 
+// A velocity fixity prescribes the displacement of its components over the
+// step (trapezoidal in the prescribed velocity), whatever the grid says.
+template <int D>
+inline void fixity_step(const Simulation::Impl &g, std::uint32_t mask, double dt, double *step) {
+    const auto &fixes = g.sim.scenario().particle_velocities;
+    while (mask) {
+        const std::size_t k = static_cast<std::size_t>(__builtin_ctz(mask));
+        mask &= mask - 1;
+        for (int d = 0; d < D; ++d) {
+            const std::size_t dd = static_cast<std::size_t>(d);
+            if (fixes[k].velocity.c[dd])
+                step[d] = 0.5 * dt * (g.fix_start[k][dd] + g.fix_end[k][dd]);
+        }
+    }
+}
+
 // Phase 3 (G2P) motion: particle velocity by the FLIP/PIC blend (eq. 36) or
 // PIC with an affine matrix (APIC / TPIC), the position increment (first
 // order, or second order: x + dt v~ - dt^2/2 a = x + dt (v + v~)/2, see
@@ -558,7 +592,8 @@ void g2p_motion_pass(Simulation::Impl &g, double dt, double kin_dt) {
     const auto &sc = g.sim.scenario();
     const Transfer tr = sc.solver.transfer;
     const double alpha = tr == Transfer::flip ? sc.solver.alpha : 0.0;
-    const bool second = sc.solver.second_order_position;
+    const bool second = g.trapezoid_positions;
+    const bool move = g.motion_moves_particles;
     const double *vel = g.vel.data();
     const bool bspline = g.apic_dinv > 0.0;
     using St = Stencil<D, S, Apic>;
@@ -616,23 +651,22 @@ void g2p_motion_pass(Simulation::Impl &g, double dt, double kin_dt) {
             // Particle velocity fixities override the grid's answer.
             if (std::uint32_t mask = s.fix_mask[p]) {
                 const auto &fixes = sc.particle_velocities;
-                while (mask) {
-                    const std::size_t k = static_cast<std::size_t>(__builtin_ctz(mask));
-                    mask &= mask - 1;
-                    for (int d = 0; d < D; ++d) {
-                        const std::size_t dd = static_cast<std::size_t>(d);
-                        if (!fixes[k].velocity.c[dd]) continue;
-                        s.v[dd][p] = g.fix_end[k][dd];
-                        step[d] = 0.5 * dt * (g.fix_start[k][dd] + g.fix_end[k][dd]);
-                    }
+                for (std::uint32_t m = mask; m;) {
+                    const std::size_t k = static_cast<std::size_t>(__builtin_ctz(m));
+                    m &= m - 1;
+                    for (int d = 0; d < D; ++d)
+                        if (fixes[k].velocity.c[static_cast<std::size_t>(d)])
+                            s.v[static_cast<std::size_t>(d)][p] =
+                                g.fix_end[k][static_cast<std::size_t>(d)];
                 }
+                fixity_step<D>(g, mask, dt, step);
             }
             // With the kinematics fused in (USL) nothing later in the step
             // needs the start position: move the particle now.
             for (int d = 0; d < D; ++d) {
                 if constexpr (Kinematics)
                     s.x[static_cast<std::size_t>(d)][p] += step[d];
-                else
+                else if (move)
                     s.dx[static_cast<std::size_t>(d)][p] = step[d];
             }
         };
@@ -668,9 +702,13 @@ void g2p_motion_kernel(Simulation::Impl &g, double dt, bool gradient, double kin
 }
 
 // Velocity gradient (eq. 38) from one velocity field of the node records,
-// for the schemes that take it from another field than v~ (USF, MUSL, USAVG).
-template <int D, class S>
-void g2p_gradient_kernel(Simulation::Impl &g, const double *field, std::size_t offset) {
+// for the schemes that take it from another field than v~ (USF, MUSL,
+// USAVG). With pos_dt > 0 the particle also moves over pos_dt with the
+// velocity at pos_offset of the same records (USF, MUSL: the field of the
+// gradient, or for second-order MUSL its mean with the start velocities).
+template <int D, class S, bool Positions>
+void g2p_gradient_pass(Simulation::Impl &g, const double *field, std::size_t offset,
+                       std::size_t pos_offset, double pos_dt) {
     using Impl = Simulation::Impl;
     for (auto &s : g.sim.sets()) {
         const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(s.n);
@@ -679,18 +717,37 @@ void g2p_gradient_kernel(Simulation::Impl &g, const double *field, std::size_t o
             const std::size_t p = static_cast<std::size_t>(pp);
             Stencil<D, S, false> st;
             st.eval(g, s, p);
-            double L[D][D] = {};
+            double L[D][D] = {}, vk[D] = {};
             for (int q = 0; q < Stencil<D, S, false>::NN; ++q) {
-                const double *rec = field + Impl::kRec * st.idx[q] + offset;
-                for (int d = 0; d < D; ++d)
+                const double *node = field + Impl::kRec * st.idx[q];
+                const double *rec = node + offset;
+                for (int d = 0; d < D; ++d) {
+                    if constexpr (Positions)
+                        vk[d] += st.w[q] * node[pos_offset + static_cast<std::size_t>(d)];
                     for (int c = 0; c < D; ++c)
                         L[d][c] += rec[d] * st.grad[q][c];
+                }
             }
             for (int r = 0; r < D; ++r)
                 for (int c = 0; c < D; ++c)
                     s.L[9 * p + static_cast<std::size_t>(3 * r + c)] = L[r][c];
+            if constexpr (Positions) {
+                double step[D];
+                for (int d = 0; d < D; ++d)
+                    step[d] = pos_dt * vk[d];
+                if (const std::uint32_t mask = s.fix_mask[p]) fixity_step<D>(g, mask, pos_dt, step);
+                for (int d = 0; d < D; ++d)
+                    s.dx[static_cast<std::size_t>(d)][p] = step[d];
+            }
         }
     }
+}
+
+template <int D, class S>
+void g2p_gradient_kernel(Simulation::Impl &g, const double *field, std::size_t offset,
+                         std::size_t pos_offset, double pos_dt) {
+    if (pos_dt > 0.0) return g2p_gradient_pass<D, S, true>(g, field, offset, pos_offset, pos_dt);
+    g2p_gradient_pass<D, S, false>(g, field, offset, 0, 0.0);
 }
 
 template <int D, class S>
@@ -1363,9 +1420,7 @@ Simulation::Simulation(Scenario &scenario, SolverOptions options)
             s.dim = sc_.dim;
             s.has_C = sc_.solver.transfer != Transfer::flip;
             s.has_divv = sc_.solver.cell_averaged_dilation;
-            // USL without cell averaging does its kinematics and moves the
-            // particles inside G2P: no stored gradient or position step.
-            s.has_L = !(sc_.solver.scheme == Scheme::usl && !sc_.solver.cell_averaged_dilation);
+            s.has_L = !fused_usl(sc_.solver);
             s.has_dx = s.has_L;
             sets_.push_back(std::move(s));
         }
@@ -1629,6 +1684,12 @@ void Simulation::step(double max_dt) {
     }
     const Scheme scheme = sc_.solver.scheme;
 
+    // Kinematic consistency: the particles move with the grid velocity
+    // field whose gradient advances F (docs/theory.md), or with its mean
+    // with the start velocities for a second-order position update.
+    const bool trapezoid = sc_.solver.second_order_position;
+    double *a = g.acc.data();
+    const double *v = g.vel.data();
     if (scheme == Scheme::usl || scheme == Scheme::musl) {
         {
             auto tm = g.time_phase(2);
@@ -1641,15 +1702,17 @@ void Simulation::step(double max_dt) {
         {
             auto tm = g.time_phase(4);
             // USL without cell averaging does the kinematics inside G2P.
-            const bool fuse = scheme == Scheme::usl && !sc_.solver.cell_averaged_dilation;
+            const bool fuse = fused_usl(sc_.solver);
+            g.motion_moves_particles = scheme == Scheme::usl;
+            g.trapezoid_positions = trapezoid;
             g.g2p_motion(g, dt, scheme == Scheme::usl, fuse ? dt : 0.0);
         }
         if (scheme == Scheme::musl) {
             // Modified USL: the updated particle momentum is mapped again and
             // the velocity gradient taken from that field (Sulsky et al. 1995).
-            // The force slots are free once v~ is known: the remapped
-            // velocity goes there.
-            double *a = g.acc.data();
+            // The particles move with it too, not with v~: moved by v~, they
+            // drift away from what F records under a held load (a cantilever
+            // creeps). The momentum slots hold the second-order mean.
             for (std::size_t i = 0; i < g.n_nodes; ++i)
                 for (int d = 0; d < sc_.dim; ++d)
                     a[Impl::kRec * i + Impl::kP + static_cast<std::size_t>(d)] = 0.0;
@@ -1662,26 +1725,38 @@ void Simulation::step(double max_dt) {
                                 : 0.0;
             }
             g.apply_bc(a, Impl::kF, t + dt);
-            g.g2p_gradient(g, a, Impl::kF);
+            if (trapezoid)
+                for (std::size_t i = 0; i < g.n_nodes; ++i)
+                    for (int d = 0; d < sc_.dim; ++d) {
+                        const std::size_t k = Impl::kRec * i + static_cast<std::size_t>(d);
+                        a[k + Impl::kP] = 0.5 * (v[k + Impl::kV0] + a[k + Impl::kF]);
+                    }
+            g.g2p_gradient(g, a, Impl::kF, trapezoid ? Impl::kP : Impl::kF, dt);
         }
         g.kinematics_and_update(dt, t);
     } else if (scheme == Scheme::usf) {
         // Update stress first: the velocity gradient from the mapped start
-        // velocities, then forces from the updated stress.
+        // velocities, and the particles move with them; then forces from
+        // the updated stress, grid update and the velocity G2P.
         g.p2g(g, true, false, false, t);
         g.grid_velocities(dt, t, false);
-        g.g2p_gradient(g, g.vel.data(), Impl::kV0);
+        g.g2p_gradient(g, v, Impl::kV0, Impl::kV0, dt);
         g.kinematics_and_update(dt, t);
         g.p2g(g, false, true, false, t);
         g.grid_velocities(dt, t, true);
+        g.motion_moves_particles = false;
         g.g2p_motion(g, dt, false, 0.0);
     } else { // USAVG: half the increment at each end of the step (Nairn 2003)
         g.p2g(g, true, false, false, t);
         g.grid_velocities(dt, t, false);
-        g.g2p_gradient(g, g.vel.data(), Impl::kV0);
+        g.g2p_gradient(g, v, Impl::kV0, 0, 0.0);
         g.kinematics_and_update(0.5 * dt, t);
         g.p2g(g, false, true, false, t);
         g.grid_velocities(dt, t, true);
+        // F took half its step from v and takes half from v~: the particles
+        // move with the mean of the two.
+        g.motion_moves_particles = true;
+        g.trapezoid_positions = true;
         g.g2p_motion(g, dt, true, 0.0);
         g.kinematics_and_update(0.5 * dt, t + 0.5 * dt);
     }

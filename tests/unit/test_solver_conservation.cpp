@@ -10,20 +10,23 @@ using talus::test::totals;
 
 namespace {
 
-std::string free_fall(int dim, const std::string &position_update, const std::string &shape) {
+std::string free_fall(int dim, const std::string &position_update, const std::string &shape,
+                      const std::string &scheme = "usl") {
     const bool d3 = dim == 3;
-    return fmt::format("talus: 1\ndimension: {}\n"
-                       "grid: {{origin: {}, size: {}, cell: 0.1}}\n"
-                       "materials:\n  m: {{model: linear_elastic, density: 1000, youngs_modulus: "
-                       "1.0e6, poisson_ratio: 0.25}}\n"
-                       "groups:\n  block: {{material: m, particles_per_cell: 2, shape: {{box: "
-                       "{{min: {}, max: {}}}}}}}\n"
-                       "gravity: {}\n"
-                       "solver: {{shape: {}, position_update: {}, dt: 0.002}}\n"
-                       "time: {{end: 1.0}}\n",
-                       dim, d3 ? "[0, 0, 0]" : "[0, 0]", d3 ? "[2, 2, 8]" : "[2, 8]",
-                       d3 ? "[0.5, 0.5, 6.0]" : "[0.5, 6.0]", d3 ? "[1.5, 1.5, 7.0]" : "[1.5, 7.0]",
-                       d3 ? "[0, 0, -9.81]" : "[0, -9.81]", shape, position_update);
+    return fmt::format(
+        "talus: 1\ndimension: {}\n"
+        "grid: {{origin: {}, size: {}, cell: 0.1}}\n"
+        "materials:\n  m: {{model: linear_elastic, density: 1000, youngs_modulus: "
+        "1.0e6, poisson_ratio: 0.25}}\n"
+        "groups:\n  block: {{material: m, particles_per_cell: 2, shape: {{box: "
+        "{{min: {}, max: {}}}}}}}\n"
+        "gravity: {}\n"
+        "solver: {{scheme: {}, shape: {}, {}dt: 0.002}}\n"
+        "time: {{end: 1.0}}\n",
+        dim, d3 ? "[0, 0, 0]" : "[0, 0]", d3 ? "[2, 2, 8]" : "[2, 8]",
+        d3 ? "[0.5, 0.5, 6.0]" : "[0.5, 6.0]", d3 ? "[1.5, 1.5, 7.0]" : "[1.5, 7.0]",
+        d3 ? "[0, 0, -9.81]" : "[0, -9.81]", scheme, shape,
+        position_update.empty() ? "" : fmt::format("position_update: {}, ", position_update));
 }
 
 } // namespace
@@ -70,6 +73,40 @@ TEST(Conservation, FreeFallGainsExactlyGT) {
                 // Stress from round-off strain only: E * 1e-15.
                 EXPECT_LT(worst_s, 1e-6) << what;
             }
+}
+
+// Each scheme moves its particles with the grid velocity field that
+// advances their F (docs/theory.md, "Kinematic consistency"), so in free fall
+// the displacement after n steps is the closed form of that field:
+// v~ = g dt (k + 1) at step k for USL and MUSL (the remapped end velocity
+// equals v~ in a uniform field), x_n = g dt^2 n (n + 1) / 2; the start
+// velocity g dt k for USF, g dt^2 n (n - 1) / 2; their mean for USAVG and for
+// a second-order USL or MUSL, g t^2 / 2. Tolerance as above (round-off of a
+// uniform field, 1e-12 relative).
+TEST(Conservation, FreeFallMovesWithTheSchemesKinematicField) {
+    struct Case {
+        const char *scheme, *update;
+        double k; // x_n = g dt^2 (n^2 + k n) / 2
+    };
+    for (const Case &c :
+         {Case{"usl", "", 1}, Case{"usl", "second_order", 0}, Case{"musl", "", 1},
+          Case{"musl", "second_order", 0}, Case{"usf", "", -1}, Case{"usavg", "", 0}}) {
+        auto s = sim_from_text(free_fall(2, c.update, "bspline2", c.scheme));
+        const int n = 100;
+        const double dt = 0.002, t = n * dt, g = -9.81;
+        advance(*s->sim, t);
+        ASSERT_EQ(s->sim->steps(), n);
+        const double expect_u = 0.5 * g * dt * dt * (n * n + c.k * n);
+        double worst_v = 0, worst_u = 0;
+        for (const auto &set : s->sim->sets())
+            for (std::size_t p = 0; p < set.n; ++p) {
+                worst_v = std::max(worst_v, std::abs(set.v[1][p] - g * t));
+                worst_u = std::max(worst_u, std::abs(set.x[1][p] - set.x0[1][p] - expect_u));
+            }
+        const std::string what = fmt::format("{} {}", c.scheme, c.update);
+        EXPECT_LT(worst_v, 1e-12 * std::abs(g * t)) << what;
+        EXPECT_LT(worst_u, 1e-12 * std::abs(expect_u)) << what;
+    }
 }
 
 // Mass: the particles' is constant by construction; the grid's equals it at
