@@ -677,4 +677,9 @@ std::string Origin::warning(std::string_view what) const {
     return fmt::format("{}: warning: '{}' {}", where, key, what);
 }
 
+std::string Origin::note(std::string_view what) const {
+    if (where.empty()) return fmt::format("note: {}", what);
+    return fmt::format("{}: note: '{}' {}", where, key, what);
+}
+
 } // namespace talus

@@ -3,6 +3,7 @@
 
 #include <talus/run.hpp>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -58,4 +59,39 @@ TEST(RunOutput, ResultsDoNotDependOnTheOutputCadence) {
         EXPECT_LT(rows[r][1] - due, rows[r][2] + 1e-12) << "row " << r;
     }
     fs::remove_all(tmp);
+}
+
+// `validate` and `run` note a slender group with at most 2 particles per
+// cell (docs/scenario-reference.md, "Particles per cell in slender bodies"):
+// a 1 x 0.1 m beam is 10 times longer than thick; a 0.3 x 0.1 m block (3
+// times) is not slender, and 3 particles per cell need no note.
+TEST(RunOutput, ValidateNotesASlenderGroupWithFewParticlesPerCell) {
+    auto notes_for = [](const std::string &max, int ppc) {
+        talus::PluginRegistry registry;
+        unsetenv("TALUS_PLUGIN_PATH");
+        talus::Scenario sc = talus::read_scenario(
+            talus::yaml::load_string(
+                fmt::format("talus: 1\ndimension: 2\ngrid: {{origin: [0, 0], size: [1.2, 0.4], "
+                            "cell: 0.025}}\n"
+                            "materials:\n  m: {{model: linear_elastic, density: 1000, "
+                            "youngs_modulus: 1.0e6, poisson_ratio: 0.3}}\n"
+                            "groups:\n  beam: {{material: m, particles_per_cell: {}, shape: {{box: "
+                            "{{min: [0, 0.1], max: [{}, 0.2]}}}}}}\n"
+                            "time: {{end: 0.01}}\n",
+                            ppc, max),
+                "beam.yaml"),
+            registry);
+        std::string all;
+        for (const std::string &n : talus::prepare_run(sc, {}).plan.notes)
+            all += n + "\n";
+        return all;
+    };
+    const std::string slender = notes_for("1.0", 2);
+    EXPECT_NE(slender.find("beam.yaml:7:"), std::string::npos) << slender;
+    EXPECT_NE(slender.find("'groups.beam' is slender (1 m long, 0.1 m thick: 8 particles across)"),
+              std::string::npos)
+        << slender;
+    EXPECT_NE(slender.find("consider particles_per_cell: 3 or 4"), std::string::npos);
+    EXPECT_EQ(notes_for("1.0", 3).find("slender"), std::string::npos);
+    EXPECT_EQ(notes_for("0.3", 2).find("slender"), std::string::npos);
 }

@@ -31,6 +31,7 @@ struct Origin {
     // "<where>: error: '<key>' <what>", or "error: <what>" without a place.
     std::string error(std::string_view what) const;
     std::string warning(std::string_view what) const;
+    std::string note(std::string_view what) const;
 };
 
 struct Box {
