@@ -494,8 +494,8 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
         // The particles move with the grid velocity field whose gradient
         // advanced F in the step (docs/theory.md, "Kinematic consistency"):
         // USF has only the start field when it updates the stress, USAVG
-        // uses both halves, so each has one position update.
-        p.second_order_position = p.scheme == Scheme::usavg;
+        // uses both halves, so each has one position update (the solver
+        // applies it whatever this flag says).
         if (const yaml::Node n = sv.get("position_update"); n.defined()) {
             p.second_order_position =
                 choose<bool>(n, {{"first_order", false}, {"second_order", true}});

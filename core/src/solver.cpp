@@ -80,10 +80,22 @@ void ParticleSet::move(std::size_t from, std::size_t to) {
 // ------------------------------------------------------------------ Impl --
 
 namespace {
-// USL with first-order positions and no cell averaging does its kinematics
-// inside the velocity G2P: no stored gradient or position step.
+// USL without cell averaging does its kinematics inside the velocity G2P:
+// no stored gradient or position step.
 bool fused_usl(const SolverSpec &sv) {
     return sv.scheme == Scheme::usl && !sv.cell_averaged_dilation;
+}
+
+// Kinematic consistency (docs/theory.md, its table): each particle moves
+// with the grid velocity field whose gradient advances its F, or with that
+// field's mean with the start velocities. USL and USAVG move the particles
+// in the velocity G2P (by v~, or by (v + v~) / 2); USF and MUSL in the
+// gradient pass of their own field.
+bool trapezoid_positions(const SolverSpec &sv) {
+    return sv.scheme == Scheme::usavg || (sv.second_order_position && sv.scheme != Scheme::usf);
+}
+bool velocity_pass_moves_particles(const SolverSpec &sv) {
+    return sv.scheme == Scheme::usl || sv.scheme == Scheme::usavg;
 }
 } // namespace
 
@@ -224,13 +236,6 @@ struct Simulation::Impl {
     bool kinematics_done = false;
     bool initial_state = false;     // the constructor's call on the initial state
     bool positions_applied = false; // G2P moved the particles (fused USL)
-    // Kinematic consistency (docs/theory.md): each particle moves with the
-    // interpolated grid velocity field whose gradient advances its F. In
-    // USL and USAVG that field comes out of the velocity G2P (v~, or the
-    // mean of v and v~); in USF and MUSL the gradient pass writes the
-    // position step and the velocity G2P leaves it alone.
-    bool motion_moves_particles = true;
-    bool trapezoid_positions = false; // x += dt (v + v~) / 2
     int inverted_set = -1;
     std::size_t inverted_particle = 0;
     std::string inversion_message(const ParticleSet &s, std::size_t p, double t) const {
@@ -592,8 +597,8 @@ void g2p_motion_pass(Simulation::Impl &g, double dt, double kin_dt) {
     const auto &sc = g.sim.scenario();
     const Transfer tr = sc.solver.transfer;
     const double alpha = tr == Transfer::flip ? sc.solver.alpha : 0.0;
-    const bool second = g.trapezoid_positions;
-    const bool move = g.motion_moves_particles;
+    const bool second = trapezoid_positions(sc.solver);
+    const bool move = velocity_pass_moves_particles(sc.solver);
     const double *vel = g.vel.data();
     const bool bspline = g.apic_dinv > 0.0;
     using St = Stencil<D, S, Apic>;
@@ -1687,7 +1692,7 @@ void Simulation::step(double max_dt) {
     // Kinematic consistency: the particles move with the grid velocity
     // field whose gradient advances F (docs/theory.md), or with its mean
     // with the start velocities for a second-order position update.
-    const bool trapezoid = sc_.solver.second_order_position;
+    const bool trapezoid = trapezoid_positions(sc_.solver);
     double *a = g.acc.data();
     const double *v = g.vel.data();
     if (scheme == Scheme::usl || scheme == Scheme::musl) {
@@ -1703,8 +1708,6 @@ void Simulation::step(double max_dt) {
             auto tm = g.time_phase(4);
             // USL without cell averaging does the kinematics inside G2P.
             const bool fuse = fused_usl(sc_.solver);
-            g.motion_moves_particles = scheme == Scheme::usl;
-            g.trapezoid_positions = trapezoid;
             g.g2p_motion(g, dt, scheme == Scheme::usl, fuse ? dt : 0.0);
         }
         if (scheme == Scheme::musl) {
@@ -1744,7 +1747,6 @@ void Simulation::step(double max_dt) {
         g.kinematics_and_update(dt, t);
         g.p2g(g, false, true, false, t);
         g.grid_velocities(dt, t, true);
-        g.motion_moves_particles = false;
         g.g2p_motion(g, dt, false, 0.0);
     } else { // USAVG: half the increment at each end of the step (Nairn 2003)
         g.p2g(g, true, false, false, t);
@@ -1755,8 +1757,6 @@ void Simulation::step(double max_dt) {
         g.grid_velocities(dt, t, true);
         // F took half its step from v and takes half from v~: the particles
         // move with the mean of the two.
-        g.motion_moves_particles = true;
-        g.trapezoid_positions = true;
         g.g2p_motion(g, dt, true, 0.0);
         g.kinematics_and_update(0.5 * dt, t + 0.5 * dt);
     }

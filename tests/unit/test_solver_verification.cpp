@@ -347,8 +347,11 @@ double elastica_tip_deflection(double P_over_EI, double L) {
 TEST(Verification, ElasticaMatchesTheTabulatedValue) {
     // Bisshopp & Drucker (1945), Table 1: P L^2 / EI = 2 -> 0.4935 L (4 digits).
     EXPECT_NEAR(elastica_tip_deflection(2.0, 1.0), 0.4935, 1e-4);
-    // Small loads: the linear cantilever, P L^3 / (3 EI).
-    EXPECT_NEAR(elastica_tip_deflection(0.003, 1.0), 0.001, 1e-7);
+    // Small loads: the linear cantilever, P L^3 / (3 EI). The elastica
+    // differs from it by -1.0e-9 here (the rotation's own stiffening, of
+    // relative order alpha^2; computed independently); 1e-8 allows that
+    // and fails a solver off by 1 % of the deflection.
+    EXPECT_NEAR(elastica_tip_deflection(0.003, 1.0), 0.001, 1e-8);
 }
 
 // A load held on a cantilever through large rotations, under every scheme
