@@ -220,9 +220,14 @@ class ModelChecks {
     }
 
     // Loading paths from the natural state, 10 increments each. The generic
-    // directions (distinct principal values, all shear components) keep the
-    // states away from the edges and apex of piecewise-smooth yield surfaces,
-    // where a finite-difference tangent is meaningless.
+    // directions (distinct principal values, all shear components) reach
+    // the smooth parts of a yield surface. The axisymmetric ones (triaxial
+    // compression and extension, isotropic extension) reach the edges and
+    // the apex of piecewise-smooth surfaces such as Mohr-Coulomb's: the
+    // continued increment then lies inside the region of the trial space
+    // that returns to that edge or apex, where the return is smooth and a
+    // finite-difference tangent meaningful (on a boundary between regions
+    // it would not be, and the generic paths avoid those).
     bool build_states() {
         start("loading paths");
         const std::vector<Vec6> dirs = {
@@ -230,6 +235,9 @@ class ModelChecks {
             (Vec6() << -0.7, -1.0, -0.2, -0.3, 0.5, 0.1).finished(),
             (Vec6() << -0.3, -0.5, -1.0, 0.2, 0.1, -0.6).finished(),
             (Vec6() << 0.4, -1.0, -0.6, 0.7, 0.05, -0.2).finished(),
+            (Vec6() << -1.0, 0.3, 0.3, 0.0, 0.0, 0.0).finished(),
+            (Vec6() << 0.3, 0.3, -1.0, 0.0, 0.0, 0.0).finished(),
+            (Vec6() << 1.0, 1.0, 1.0, 0.0, 0.0, 0.0).finished(),
         };
         Pt virgin;
         virgin.rho = opt_.density;
@@ -263,7 +271,8 @@ class ModelChecks {
             directions_.push_back(dirs[d]);
         }
         report("loading paths", true,
-               fmt::format("{} states from 4 generic paths of 10 increments of {:g}; stress scale "
+               fmt::format("{} states from 4 generic and 3 axisymmetric paths of 10 increments of "
+                           "{:g}; stress scale "
                            "rho c^2 de = {:.4g}",
                            states_.size(), opt_.strain_scale, stress_scale_));
         return true;
@@ -403,7 +412,12 @@ class ModelChecks {
                     return report("tangent", false, "finite-difference probe: " + r.message);
                 fd.col(j) = (o[0].s1 - o[1].s1) / (2.0 * h);
             }
-            const double scale = std::max(D.cwiseAbs().maxCoeff(), 1e-300);
+            // Relative to the larger of max|D| and the elastic modulus rho
+            // c^2 of the first loading increment: a perfectly plastic return
+            // to an apex has D = 0, where only the rounding of both sides
+            // (~1e-16 |sigma| / h) remains.
+            const double scale =
+                std::max({D.cwiseAbs().maxCoeff(), stress_scale_ / opt_.strain_scale, 1e-300});
             for (int i = 0; i < 6; ++i)
                 for (int j = 0; j < 6; ++j) {
                     const double e = std::abs(D(i, j) - fd(i, j)) / scale;
@@ -417,7 +431,7 @@ class ModelChecks {
         }
         report("tangent", worst <= 1e-5,
                fmt::format("against central differences (h = {:g}) at {} states: largest error "
-                           "{:.3g} of max|D| (limit 1e-5){}",
+                           "{:.3g} of max(max|D|, rho c^2) (limit 1e-5){}",
                            h, pts.size(), worst,
                            worst > 1e-5 ? fmt::format(", at state {} entry D[{}][{}]", worst_point,
                                                       worst_i, worst_j)

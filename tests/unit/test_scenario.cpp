@@ -83,10 +83,10 @@ TEST(ScenarioErrors, MissingPlugin) {
         m,
         "s.yaml:8:11: error: 'plugins[0]' plugin library 'no_such_plugin' not found; looked for:"))
         << m;
-    const std::string u = error_of(with("model: linear_elastic", "model: mohr_coulomb"));
+    const std::string u = error_of(with("model: linear_elastic", "model: cam_clay"));
     EXPECT_TRUE(contains(
         u, "s.yaml:5:17: error: 'materials.sand.model' no plugin offers the material model "
-           "'mohr_coulomb'"))
+           "'cam_clay'"))
         << u;
 }
 

@@ -1,0 +1,433 @@
+// Mohr-Coulomb: linear elastic - perfectly plastic, non-associated (dilation
+// angle psi <= friction angle phi), with a tension cut-off and optional
+// linear softening of phi, psi and c with the accumulated plastic deviatoric
+// strain.
+//
+// The return mapping is exact in principal stress space (principal_return.hpp,
+// after Clausen, Damkilde & Andersen 2006, 2007): onto the shear plane, the
+// triaxial compression and extension edges, the apex, the cut-off plane and
+// the lines and points where the cut-off meets the shear planes.
+//
+// Softening is implicit: the strength used in the return is the one at the
+// end of the increment, kappa_n+1 = kappa_n + d_kappa(kappa_n+1), a scalar
+// equation solved by safeguarded regula falsi between kappa_n and a bound
+// where it changes sign (see Softening below). The consistent tangent
+// includes the coupling through kappa.
+//
+// A start stress outside the yield surface (only possible from a user's
+// initial stress: every stress this model returns is admissible) is first
+// projected onto the surface by the same return, at the start state's
+// strength and without counting the projection as plastic strain; the
+// increment then starts from the projected stress. A zero increment thus
+// returns the projected stress.
+//
+// The host rotates sigma_start objectively before the call (the model is not
+// TALUS_MODEL_FINITE_STRAIN); the model works on the strain increment.
+#include "principal_return.hpp"
+
+#include <talus/sdk/material.hpp>
+#include <talus/sdk/voigt.hpp>
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <string>
+
+namespace {
+
+using talus::sdk::Mat3;
+using talus::sdk::Mat6;
+using talus::sdk::Vec6;
+using talus_mc::Elastic;
+using talus_mc::M3;
+using talus_mc::Return;
+using talus_mc::Strength;
+using talus_mc::V3;
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+std::string fmt_g(double v) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%g", v);
+    return buf;
+}
+
+// Ordered (descending) spectral decomposition of a symmetric matrix.
+struct Spectral {
+    V3 values;  // s1 >= s2 >= s3
+    M3 vectors; // column k belongs to values[k]
+    explicit Spectral(const Mat3 &m) {
+        const Eigen::SelfAdjointEigenSolver<Mat3> es(m);
+        // Eigen returns ascending values.
+        for (int k = 0; k < 3; ++k) {
+            values[k] = es.eigenvalues()[2 - k];
+            vectors.col(k) = es.eigenvectors().col(2 - k);
+        }
+    }
+    Mat3 compose(const V3 &s) const { return vectors * s.asDiagonal() * vectors.transpose(); }
+};
+
+struct MohrCoulomb {
+    static constexpr talus::sdk::ModelInfo info{
+        .id = "mohr_coulomb",
+        .name = "Mohr-Coulomb (elastic - perfectly plastic, tension cut-off, softening)",
+        .version = "1.0.0",
+        .doc = "Isotropic linear elasticity with the Mohr-Coulomb yield surface (1 + sin phi) s1 - "
+               "(1 - sin phi) s3 = 2 c cos phi (s1 >= s2 >= s3 principal stresses, tension "
+               "positive), non-associated flow with the dilation angle psi in the plastic "
+               "potential, and a tension cut-off s1 <= T. Exact return mapping in principal "
+               "stress space onto the planes, the triaxial compression and extension edges and "
+               "the apex (Clausen, Damkilde & Andersen, Comput. Struct. 85 (2007) 1795-1807), "
+               "with its consistent tangent. Optional linear softening of phi, psi and c "
+               "between two values of the accumulated plastic deviatoric strain "
+               "sqrt(2/3 e_p:e_p), solved implicitly. A start stress outside the surface is "
+               "projected onto it before the increment, without plastic strain. Wave speed: "
+               "the elastic P-wave speed sqrt((K + 4G/3) / rho).",
+        .finite_strain = false,
+        .tangent = true,
+    };
+
+    static constexpr std::array params{
+        talus::sdk::real("youngs_modulus", "Pa", "Young's modulus E.")
+            .required()
+            .above(0.0)
+            .typical(1.0e7),
+        talus::sdk::real("poisson_ratio", "-", "Poisson's ratio nu.")
+            .required()
+            .above(-1.0)
+            .below(0.5)
+            .typical(0.3),
+        talus::sdk::real("friction_angle", "deg", "Friction angle phi (peak when softening).")
+            .required()
+            .at_least(0.0)
+            .below(90.0)
+            .typical(30.0),
+        talus::sdk::real("dilation_angle", "deg",
+                         "Dilation angle psi of the plastic potential, at most phi; psi = phi is "
+                         "associated flow.")
+            .defaults_to(0.0)
+            .at_least(0.0)
+            .below(90.0)
+            .typical(10.0),
+        talus::sdk::real("cohesion", "Pa", "Cohesion c (peak when softening).")
+            .defaults_to(0.0)
+            .at_least(0.0)
+            .typical(1.0e4),
+        talus::sdk::real("tension_cutoff", "Pa",
+                         "Tensile strength T: the largest principal stress stays <= T. A value "
+                         "beyond the apex c cot phi can never be reached and has no effect.")
+            .defaults_to(0.0)
+            .at_least(0.0)
+            .typical(5.0e3),
+        talus::sdk::boolean("softening",
+                            "Soften phi, psi and c linearly with the plastic deviatoric strain "
+                            "between softening_start and softening_end.")
+            .defaults_to(0.0)
+            .typical(1.0),
+        talus::sdk::real("residual_friction_angle", "deg",
+                         "Friction angle reached at softening_end (with softening).")
+            .defaults_to(0.0)
+            .at_least(0.0)
+            .below(90.0)
+            .typical(25.0),
+        talus::sdk::real("residual_dilation_angle", "deg",
+                         "Dilation angle reached at softening_end (with softening), at most the "
+                         "residual friction angle.")
+            .defaults_to(0.0)
+            .at_least(0.0)
+            .below(90.0)
+            .typical(0.0),
+        talus::sdk::real("residual_cohesion", "Pa",
+                         "Cohesion reached at softening_end (with softening).")
+            .defaults_to(0.0)
+            .at_least(0.0)
+            .typical(2.0e3),
+        talus::sdk::real("softening_start", "-",
+                         "Plastic deviatoric strain at which softening starts (with softening).")
+            .defaults_to(0.0)
+            .at_least(0.0)
+            .typical(0.0),
+        talus::sdk::real("softening_end", "-",
+                         "Plastic deviatoric strain at which the residual values are reached "
+                         "(with softening); greater than softening_start.")
+            .defaults_to(0.0)
+            .at_least(0.0)
+            .typical(1.0e-3),
+    };
+
+    static constexpr std::array state{
+        talus::sdk::state_variable("plastic_deviatoric_strain", "-",
+                                   "Accumulated equivalent plastic deviatoric strain, the sum of "
+                                   "sqrt(2/3 de_p:de_p) over the increments; drives softening.")
+            .output()
+            .user_initialisable(),
+        talus::sdk::state_variable("plastic_volumetric_strain", "-",
+                                   "Accumulated plastic volumetric strain tr(e_p), positive in "
+                                   "dilation.")
+            .output(),
+        talus::sdk::state_variable(
+            "yield_mode", "-",
+            "Where the stress is: 0 inside the yield surface, otherwise "
+            "the part of the surface the last return put it on: 1 shear "
+            "plane, 2 triaxial compression edge, 3 triaxial extension edge, 4 apex, 5 "
+            "tension plane, 6 tension edge, 7 tension apex, 8 shear-tension "
+            "line, 9 shear-tension corner (compression), 10 shear-tension "
+            "corner (extension).")
+            .output(),
+    };
+
+    explicit MohrCoulomb(const talus::sdk::ParamValues &p) {
+        const double E = p["youngs_modulus"];
+        const double nu = p["poisson_ratio"];
+        el_.shear = E / (2.0 * (1.0 + nu));
+        el_.lambda = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
+        De_.setZero();
+        for (int i = 0; i < 3; ++i) {
+            for (int j = 0; j < 3; ++j)
+                De_(i, j) = el_.lambda;
+            De_(i, i) = el_.lambda + 2.0 * el_.shear;
+            De_(i + 3, i + 3) = el_.shear; // engineering shear strain in
+        }
+        phi_ = p["friction_angle"];
+        psi_ = p["dilation_angle"];
+        c_ = p["cohesion"];
+        tension_ = p["tension_cutoff"];
+        softening_ = p["softening"] != 0.0;
+        phi_r_ = p["residual_friction_angle"];
+        psi_r_ = p["residual_dilation_angle"];
+        c_r_ = p["residual_cohesion"];
+        k0_ = p["softening_start"];
+        k1_ = p["softening_end"];
+        if (psi_ > phi_)
+            throw talus::sdk::Failure("dilation_angle (" + fmt_g(psi_) +
+                                      " deg) exceeds friction_angle (" + fmt_g(phi_) +
+                                      " deg): the plastic work would be negative; use psi <= phi");
+        if (softening_) {
+            if (!(k1_ > k0_))
+                throw talus::sdk::Failure("softening_end (" + fmt_g(k1_) +
+                                          ") must be greater than softening_start (" + fmt_g(k0_) +
+                                          ") when softening is on");
+            if (psi_r_ > phi_r_)
+                throw talus::sdk::Failure("residual_dilation_angle (" + fmt_g(psi_r_) +
+                                          " deg) exceeds residual_friction_angle (" +
+                                          fmt_g(phi_r_) + " deg)");
+        } else if (phi_r_ != 0.0 || psi_r_ != 0.0 || c_r_ != 0.0 || k0_ != 0.0 || k1_ != 0.0) {
+            throw talus::sdk::Failure(
+                "residual_friction_angle, residual_dilation_angle, residual_cohesion, "
+                "softening_start and softening_end take effect only with softening: true; set "
+                "it or remove them");
+        }
+    }
+
+    void update(const talus::sdk::PointIn &in, talus::sdk::PointOut &out) const {
+        const double kappa_n = in.state[0];
+        const Strength st_n = strength(kappa_n);
+        Vec6 trial = in.stress + De_ * in.strain_increment;
+        Spectral sp(talus::sdk::stress_to_matrix(trial));
+        Return r = talus_mc::return_map(sp.values, st_n, el_);
+        if (r.mode == talus_mc::kElastic) {
+            out.stress = trial;
+            // A stress left on the surface without plastic flow (a zero or
+            // neutral increment) keeps its place on it.
+            if (!on_surface(sp.values, st_n)) out.state[2] = talus_mc::kElastic;
+            if (out.tangent) *out.tangent = De_;
+            return;
+        }
+        // Plastic. If the start stress itself lies outside the surface (a
+        // user's initial stress), project it first, without plastic strain.
+        const Spectral s0(talus::sdk::stress_to_matrix(in.stress));
+        if (!talus_mc::admissible(s0.values, st_n, talus_mc::stress_tolerance(s0.values, st_n))) {
+            const Return r0 = talus_mc::return_map(s0.values, st_n, el_);
+            trial = talus::sdk::matrix_to_stress(s0.compose(r0.stress)) + De_ * in.strain_increment;
+            sp = Spectral(talus::sdk::stress_to_matrix(trial));
+        }
+        double kappa = kappa_n;
+        M3 P_total;
+        r = plastic_return(sp.values, kappa_n, kappa, P_total);
+        const V3 x = el_.solve(sp.values - r.stress); // principal plastic strain increment
+        out.stress = talus::sdk::matrix_to_stress(sp.compose(r.stress));
+        out.state[0] = kappa;
+        out.state[1] = in.state[1] + x.sum();
+        out.state[2] = r.mode;
+        if (out.tangent) *out.tangent = spectral_tangent(sp, r.stress, P_total);
+    }
+
+    double wave_speed(const talus::sdk::PointIn &in, const talus::sdk::PointOut &) const {
+        return std::sqrt((el_.lambda + 2.0 * el_.shear) / in.density);
+    }
+
+  private:
+    // Linear softening weight in [0, 1] and its derivative.
+    double weight(double kappa, double &dw) const {
+        dw = 0.0;
+        if (!softening_ || kappa <= k0_) return 0.0;
+        if (kappa >= k1_) return 1.0;
+        dw = 1.0 / (k1_ - k0_);
+        return (kappa - k0_) * dw;
+    }
+
+    Strength strength(double kappa) const {
+        double dw = 0.0;
+        const double w = weight(kappa, dw);
+        const double phi = (phi_ + (phi_r_ - phi_) * w) * kDeg;
+        const double psi = (psi_ + (psi_r_ - psi_) * w) * kDeg;
+        Strength s;
+        s.sin_phi = std::sin(phi);
+        s.cos_phi = std::cos(phi);
+        s.sin_psi = std::sin(psi);
+        s.cohesion = c_ + (c_r_ - c_) * w;
+        // The cut-off matters only up to the apex c cot phi; at the apex
+        // itself (c = 0, T = 0, the default) it supplies the tensile flow.
+        s.tension_active = !(s.sin_phi > 0.0 && tension_ * s.sin_phi > s.cohesion * s.cos_phi);
+        s.tension = tension_;
+        return s;
+    }
+
+    // Within the validity tolerance of the shear plane or the cut-off.
+    static bool on_surface(const V3 &s, const Strength &st) {
+        const double tol = talus_mc::stress_tolerance(s, st);
+        return talus_mc::shear_yield(s, st) > -tol ||
+               (st.tension_active && s[0] - st.tension > -tol);
+    }
+
+    // The return at the strength of kappa, with its plastic deviatoric
+    // strain increment.
+    Return return_at(const V3 &trial, double kappa, double &dkappa) const {
+        const Return r = talus_mc::return_map(trial, strength(kappa), el_);
+        dkappa = talus_mc::deviatoric_measure(el_.solve(trial - r.stress));
+        return r;
+    }
+
+    // Implicit softening: kappa = kappa_n + d_kappa(kappa), d_kappa the
+    // plastic deviatoric strain of the return at the strength of kappa.
+    // g(kappa) = kappa_n + d_kappa(kappa) - kappa is >= 0 at kappa_n, and <= 0
+    // at hi = max(k1, kappa_n + d_kappa(k1)) because the strength, and so
+    // d_kappa, is constant beyond k1. Regula falsi with the Illinois
+    // modification (Dowell & Jarratt 1971) on that bracket converges
+    // superlinearly on the piecewise-smooth g; when softening is so steep
+    // that g has several roots (snap-back at the point), the root found lies
+    // in the bracket.
+    Return plastic_return(const V3 &trial, double kappa_n, double &kappa, M3 &P_total) const {
+        double dk = 0.0;
+        Return r = return_at(trial, kappa_n, dk);
+        kappa = kappa_n + dk;
+        if (softening_ && kappa_n < k1_ && dk > 0.0) {
+            double lo = kappa_n, g_lo = dk; // g(lo) > 0
+            double dk_hi = 0.0;
+            r = return_at(trial, k1_, dk_hi);
+            double hi = std::max(k1_, kappa_n + dk_hi);
+            double g_hi = kappa_n + dk_hi - hi; // <= 0
+            kappa = hi;
+            // Strain-like; 1e-14 of the softening range is far below any
+            // physical resolution and above the rounding of g.
+            const double tol = 1e-14 * std::max(hi, k1_ - k0_);
+            int side = 0;
+            for (int it = 0; it < 200 && g_hi < -tol; ++it) {
+                double k = (lo * g_hi - hi * g_lo) / (g_hi - g_lo);
+                if (!(k > lo && k < hi)) k = 0.5 * (lo + hi);
+                r = return_at(trial, k, dk);
+                kappa = k;
+                const double g = kappa_n + dk - k;
+                if (std::abs(g) <= tol) break;
+                if (g > 0.0) {
+                    lo = k;
+                    g_lo = g;
+                    if (side == -1) g_hi *= 0.5;
+                    side = -1;
+                } else {
+                    hi = k;
+                    g_hi = g;
+                    if (side == 1) g_lo *= 0.5;
+                    side = 1;
+                }
+                if (hi - lo <= tol) break;
+            }
+            if (kappa == hi && g_hi >= -tol) r = return_at(trial, hi, dk);
+            kappa = kappa_n + dk;
+        }
+        P_total = r.P;
+        add_softening_coupling(trial, kappa, r, P_total);
+        return r;
+    }
+
+    // d sigma / d trial including kappa's dependence on the trial stress:
+    // sigma(trial, kappa), kappa = kappa_n + d_kappa(trial, kappa), so
+    // d kappa / d trial = (d_kappa,trial) / (1 - d_kappa,kappa). The partial
+    // derivatives in kappa are central differences with the candidate fixed
+    // (the return is smooth in the strength there), the ones in the trial
+    // stress exact.
+    void add_softening_coupling(const V3 &trial, double kappa, const Return &r, M3 &P) const {
+        double dw = 0.0;
+        weight(kappa, dw);
+        if (dw == 0.0 || r.candidate == talus_mc::kNone) return;
+        const V3 x = el_.solve(trial - r.stress);
+        const double dk = talus_mc::deviatoric_measure(x);
+        if (!(dk > 0.0)) return;
+        const double h = 1e-6 * (k1_ - k0_);
+        const double ka = std::max(k0_, kappa - h), kb = std::min(k1_, kappa + h);
+        Return ra, rb;
+        if (r.candidate == talus_mc::kApex) {
+            ra.stress = talus_mc::apex(strength(ka));
+            rb.stress = talus_mc::apex(strength(kb));
+        } else {
+            const talus_mc::Candidate &c =
+                talus_mc::kCandidates[static_cast<std::size_t>(r.candidate)];
+            V3 dl;
+            if (!talus_mc::solve_candidate(c, trial, talus_mc::Planes(strength(ka)), el_, dl, ra) ||
+                !talus_mc::solve_candidate(c, trial, talus_mc::Planes(strength(kb)), el_, dl, rb))
+                return;
+        }
+        const V3 ds_dk = (rb.stress - ra.stress) / (kb - ka);
+        const V3 g = (2.0 / 3.0) * (x - V3::Constant(x.sum() / 3.0)) / dk; // d dk / d x
+        const double dk_dk = -g.dot(el_.solve(ds_dk));
+        // d dk / d trial = g^T D^-1 (I - P); D^-1 is symmetric.
+        const Eigen::RowVector3d dk_dtrial = el_.solve(g).transpose() * (M3::Identity() - r.P);
+        P += ds_dk * dk_dtrial / (1.0 - dk_dk);
+    }
+
+    // The consistent tangent d sigma / d d_eps (engineering shear) of the
+    // isotropic return sigma = sum s_k n_k n_k^T of the trial stress
+    // (de Souza Neto, Peric & Owen, Computational Methods for Plasticity,
+    // 2008, app. A.5): the principal part P D_p on the eigenvalues, and
+    // for each pair k != l the spin term 2G (s_k - s_l) / (t_k - t_l) on the
+    // shear components of the eigenbasis (t the trial principal stresses),
+    // by its limit G ((P_kk - P_kl) - (P_lk - P_ll)) when t_k = t_l.
+    Mat6 spectral_tangent(const Spectral &sp, const V3 &s, const M3 &P) const {
+        const M3 PD = P * el_.matrix();
+        const V3 &t = sp.values;
+        const double scale = std::max(t.cwiseAbs().maxCoeff(), 1e-300);
+        M3 ratio = M3::Zero();
+        for (int k = 0; k < 3; ++k)
+            for (int l = 0; l < 3; ++l) {
+                if (k == l) continue;
+                const double dt = t[k] - t[l];
+                ratio(k, l) = std::abs(dt) > 1e-8 * scale
+                                  ? 2.0 * el_.shear * (s[k] - s[l]) / dt
+                                  : el_.shear * ((P(k, k) - P(k, l)) - (P(l, k) - P(l, l)));
+            }
+        const M3 &N = sp.vectors;
+        Mat6 D;
+        for (int j = 0; j < 6; ++j) {
+            Vec6 e = Vec6::Zero();
+            e[j] = 1.0;
+            const M3 Q = N.transpose() * talus::sdk::strain_to_matrix(e) * N;
+            const V3 dp = PD * Q.diagonal();
+            M3 dS = ratio.cwiseProduct(Q);
+            dS.diagonal() = dp;
+            D.col(j) = talus::sdk::matrix_to_stress(N * dS * N.transpose());
+        }
+        return D;
+    }
+
+    Elastic el_;
+    Mat6 De_;
+    double phi_ = 0.0, psi_ = 0.0, c_ = 0.0, tension_ = 0.0;
+    bool softening_ = false;
+    double phi_r_ = 0.0, psi_r_ = 0.0, c_r_ = 0.0, k0_ = 0.0, k1_ = 0.0;
+};
+
+} // namespace
+
+TALUS_MATERIAL_LIBRARY("talus_mohr_coulomb", "1.0.0", MohrCoulomb)

@@ -1,0 +1,283 @@
+// Return mapping of linear elastic - perfectly plastic Mohr-Coulomb with a
+// tension cut-off, in principal stress space.
+//
+// The method is the one of Clausen, Damkilde & Andersen: "Efficient return
+// algorithms for associated plasticity with multiple yield planes", Int. J.
+// Numer. Meth. Engng 66 (2006) 1036-1059, and "An efficient return algorithm
+// for non-associated plasticity with linear yield criteria in principal
+// stress space", Computers & Structures 85 (2007) 1795-1807. With the
+// principal stresses ordered, sigma_1 >= sigma_2 >= sigma_3 (tension
+// positive), every yield criterion is a plane, so the backward-Euler return
+// of a trial stress onto a plane, onto the line where two planes meet or onto
+// the point where three meet is the solution of a linear system of at most
+// three equations, and is exact (no iteration). Which of them is the answer
+// follows from the trial stress: the return is valid when its plastic
+// multipliers are non-negative, the returned stress keeps the principal
+// order and violates no plane. The candidates are tried from the simplest
+// (one plane) to the points, and the first valid one is the return; the
+// regions of the trial space that lead to each are exactly the ones the
+// papers construct from the flow directions (tests/unit/test_mohr_coulomb.cpp
+// checks that at most one candidate is valid at random trial stresses).
+//
+// Planes, ordered principal stresses s = (s1, s2, s3), tension positive:
+//   shear, Mohr-Coulomb  f = (1 + sin phi) s1 - (1 - sin phi) s3 - 2 c cos phi
+//                        (tau = c - sigma_n tan phi on the plane of s1, s3)
+//   tension cut-off      f = s1 - T
+// and their permutations for the edges (s1 = s2: triaxial compression in
+// the soil-mechanics sense, the axial stress the most compressive; s2 = s3:
+// triaxial extension). The plastic potential of the shear planes has the
+// dilation angle psi in place of phi (non-associated flow); the cut-off is
+// associated.
+//
+// Header-only so that the tests can reach each piece directly; the plugin
+// (mohr_coulomb.cpp) is the only other user.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/LU>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+
+namespace talus_mc {
+
+using V3 = Eigen::Vector3d;
+using M3 = Eigen::Matrix3d;
+
+// What a return did: the state variable yield_mode holds this code.
+enum Mode : int {
+    kElastic = 0,
+    kShearPlane = 1,
+    kCompressionEdge = 2,         // s1 = s2 on the shear planes (triaxial compression)
+    kExtensionEdge = 3,           // s2 = s3 on the shear planes (triaxial extension)
+    kShearApex = 4,               // s1 = s2 = s3 = c cot phi (no cut-off below it)
+    kTensionPlane = 5,            // s1 = T
+    kTensionEdge = 6,             // s1 = s2 = T
+    kTensionApex = 7,             // s1 = s2 = s3 = T
+    kShearTensionLine = 8,        // s1 = T on the shear plane
+    kShearTensionCompression = 9, // s1 = s2 = T on the shear planes
+    kShearTensionExtension = 10,  // s1 = T, s2 = s3 on the shear planes
+    kModeCount = 11,
+};
+
+// Strength at one value of the hardening variable.
+struct Strength {
+    double sin_phi = 0.0;
+    double cos_phi = 1.0;
+    double sin_psi = 0.0;
+    double cohesion = 0.0;
+    double tension = 0.0; // the cut-off T
+    // False when the cut-off lies beyond the shear apex c cot phi (it can
+    // then never be reached); always true for phi = 0, which has no apex.
+    bool tension_active = true;
+};
+
+// Isotropic elasticity in principal space: D = lambda 1 1^T + 2 G I.
+struct Elastic {
+    double shear = 0.0;
+    double lambda = 0.0;
+    V3 apply(const V3 &x) const { return lambda * x.sum() * V3::Ones() + 2.0 * shear * x; }
+    // D^-1 x = x / 2G - lambda tr(x) / (2G (3 lambda + 2G)) 1.
+    V3 solve(const V3 &x) const {
+        return x / (2.0 * shear) -
+               lambda * x.sum() / (2.0 * shear * (3.0 * lambda + 2.0 * shear)) * V3::Ones();
+    }
+    M3 matrix() const { return lambda * M3::Ones() + 2.0 * shear * M3::Identity(); }
+};
+
+// The planes and flow directions of the ordered sector.
+//   planes: 0 shear (1,3)  1 shear (2,3)  2 shear (1,2)  3..5 tension s1, s2, s3
+//   flows:  0..5 as the planes (potential with psi), 6..8 the shear
+//           potentials of the other orderings (2,1), (3,1), (3,2), needed
+//           only to span the flow cone at the apex.
+struct Planes {
+    std::array<V3, 6> a;
+    std::array<double, 6> k{};
+    std::array<V3, 9> b;
+
+    explicit Planes(const Strength &s) {
+        const double p = 1.0 + s.sin_phi, m = 1.0 - s.sin_phi;
+        const double pp = 1.0 + s.sin_psi, mp = 1.0 - s.sin_psi;
+        const double kc = 2.0 * s.cohesion * s.cos_phi;
+        a[0] = V3(p, 0.0, -m);
+        a[1] = V3(0.0, p, -m);
+        a[2] = V3(p, -m, 0.0);
+        k[0] = k[1] = k[2] = kc;
+        b[0] = V3(pp, 0.0, -mp);
+        b[1] = V3(0.0, pp, -mp);
+        b[2] = V3(pp, -mp, 0.0);
+        for (int i = 0; i < 3; ++i) {
+            a[3 + i] = V3::Unit(i);
+            k[3 + i] = s.tension;
+            b[3 + i] = V3::Unit(i);
+        }
+        b[6] = V3(-mp, pp, 0.0);
+        b[7] = V3(-mp, 0.0, pp);
+        b[8] = V3(0.0, -mp, pp);
+    }
+};
+
+// Shear yield function of ordered principal stresses, in the form above.
+inline double shear_yield(const V3 &s, const Strength &st) {
+    return (1.0 + st.sin_phi) * s[0] - (1.0 - st.sin_phi) * s[2] - 2.0 * st.cohesion * st.cos_phi;
+}
+
+// A candidate: the planes that hold as equalities and the flow directions
+// whose multipliers are unknowns (as many as planes).
+struct Candidate {
+    Mode mode;
+    int n;
+    std::array<int, 3> planes;
+    std::array<int, 3> flows;
+    bool uses_tension;
+};
+
+// In the order they are tried: planes, lines, points. The points list each
+// choice of three flow directions that spans part of their flow cone
+// (Caratheodory: any direction in the cone lies in the cone of three).
+//
+// The apex (of the cut-off when it is active, else of the shear planes) is
+// not a candidate but the answer when no candidate is valid. With
+// associated flow that region is exactly the apex's normal cone. With psi <
+// phi the potentials' cone at the apex is narrower than the surface's, and
+// trial stresses remain (beyond the apex, in hydrostatic tension) that no
+// return along the potentials can reach; their stress goes to the apex as
+// well, the plastic strain being what the elastic law then requires. This
+// is the usual vertex treatment (de Souza Neto, Peric & Owen 2008, sec.
+// 8.2.2) and keeps the return continuous: at the boundary of that region
+// the plane and edge returns arrive at the apex.
+inline constexpr std::array<Candidate, 12> kCandidates = {{
+    {kShearPlane, 1, {0, 0, 0}, {0, 0, 0}, false},
+    {kTensionPlane, 1, {3, 0, 0}, {3, 0, 0}, true},
+    {kCompressionEdge, 2, {0, 1, 0}, {0, 1, 0}, false},
+    {kExtensionEdge, 2, {0, 2, 0}, {0, 2, 0}, false},
+    {kShearTensionLine, 2, {0, 3, 0}, {0, 3, 0}, true},
+    {kTensionEdge, 2, {3, 4, 0}, {3, 4, 0}, true},
+    {kShearTensionExtension, 3, {0, 2, 3}, {0, 2, 3}, true},
+    {kShearTensionCompression, 3, {0, 1, 3}, {0, 1, 3}, true},
+    {kShearTensionCompression, 3, {0, 1, 3}, {0, 1, 4}, true},
+    {kShearTensionCompression, 3, {0, 1, 3}, {0, 3, 4}, true},
+    {kShearTensionCompression, 3, {0, 1, 3}, {1, 3, 4}, true},
+    {kTensionApex, 3, {3, 4, 5}, {3, 4, 5}, true},
+}};
+
+inline constexpr int kNone = -1;
+inline constexpr int kApex = -2;
+
+struct Return {
+    Mode mode = kElastic;
+    V3 stress = V3::Zero(); // ordered principal stresses after the return
+    M3 P = M3::Identity();  // d stress / d trial stress (principal, fixed candidate)
+    int candidate = -1;     // index into kCandidates; kNone elastic, kApex at the apex
+};
+
+// Tolerance of the validity tests, relative to the stress scale of the
+// problem: the linear solves lose a few ulps of the largest stress, so 1e-10
+// of it separates rounding from a real violation with a wide margin.
+inline double stress_tolerance(const V3 &trial, const Strength &st) {
+    return 1e-10 *
+           std::max({trial.cwiseAbs().maxCoeff(), st.cohesion, std::abs(st.tension), 1e-300});
+}
+
+// Whether the ordered principal stress s lies inside the yield surface.
+inline bool admissible(const V3 &s, const Strength &st, double tol) {
+    if (shear_yield(s, st) > tol) return false;
+    if (st.tension_active && s[0] - st.tension > tol) return false;
+    return true;
+}
+
+// The linear solve of one candidate at an ordered trial stress, without the
+// validity tests. False when the system is singular (apex triples that do
+// not span 3D, the apex of phi = 0). Fills the multipliers, the returned
+// stress and P = I - D B M^-1 A, M = A D B (the derivative of the return
+// with respect to the trial stress; Clausen et al. 2007, sec. 4).
+inline bool solve_candidate(const Candidate &c, const V3 &trial, const Planes &pl,
+                            const Elastic &el, V3 &dl, Return &out) {
+    const int n = c.n;
+    Eigen::Matrix3d M = Eigen::Matrix3d::Identity();
+    Eigen::Matrix3d A = Eigen::Matrix3d::Zero(), DB = Eigen::Matrix3d::Zero();
+    V3 rhs = V3::Zero();
+    for (int j = 0; j < n; ++j)
+        DB.col(j) = el.apply(pl.b[static_cast<std::size_t>(c.flows[static_cast<std::size_t>(j)])]);
+    for (int i = 0; i < n; ++i) {
+        const std::size_t pi = static_cast<std::size_t>(c.planes[static_cast<std::size_t>(i)]);
+        A.row(i) = pl.a[pi].transpose();
+        rhs[i] = pl.a[pi].dot(trial) - pl.k[pi];
+        for (int j = 0; j < n; ++j)
+            M(i, j) = pl.a[pi].dot(DB.col(j));
+    }
+    const Eigen::FullPivLU<Eigen::Matrix3d> lu(M);
+    if (!lu.isInvertible()) return false;
+    dl = lu.solve(rhs);
+    for (int j = n; j < 3; ++j)
+        dl[j] = 0.0;
+    out.stress = trial - DB * dl;
+    const Eigen::Matrix3d Minv = lu.inverse();
+    out.P = M3::Identity() - DB.leftCols(n) * Minv.topLeftCorner(n, n) * A.topRows(n);
+    out.mode = c.mode;
+    return true;
+}
+
+// Solves one candidate and tests it: multipliers non-negative, principal
+// order kept, no plane violated.
+inline bool try_candidate(const Candidate &c, const V3 &trial, const Planes &pl, const Elastic &el,
+                          const Strength &st, double tol, Return &out) {
+    V3 dl;
+    Return r;
+    if (!solve_candidate(c, trial, pl, el, dl, r)) return false;
+    // Multipliers are strain-like; tested relative to the largest one.
+    const double lscale = std::max(dl.cwiseAbs().maxCoeff(), 1e-300);
+    if (dl.minCoeff() < -1e-10 * lscale) return false;
+    const V3 &s = r.stress;
+    if (s[0] - s[1] < -tol || s[1] - s[2] < -tol) return false;
+    if (!admissible(s, st, tol)) return false;
+    out.stress = s;
+    out.P = r.P;
+    out.mode = r.mode;
+    return true;
+}
+
+// Candidates that exist for this strength: the cut-off ones only when the
+// cut-off is active.
+inline bool enabled(const Candidate &c, const Strength &st) {
+    return !c.uses_tension || st.tension_active;
+}
+
+// The apex of the surface: of the cut-off when it is active, else of the
+// shear planes (then sin phi > 0, see Strength).
+inline V3 apex(const Strength &st) {
+    return V3::Constant(st.tension_active ? st.tension : st.cohesion * st.cos_phi / st.sin_phi);
+}
+
+// The return of an ordered trial stress. Elastic when the trial is
+// admissible.
+inline Return return_map(const V3 &trial, const Strength &st, const Elastic &el) {
+    Return r;
+    r.stress = trial;
+    const double tol = stress_tolerance(trial, st);
+    if (admissible(trial, st, tol)) return r;
+    const Planes pl(st);
+    for (std::size_t i = 0; i < kCandidates.size(); ++i) {
+        const Candidate &c = kCandidates[i];
+        if (!enabled(c, st)) continue;
+        if (try_candidate(c, trial, pl, el, st, tol, r)) {
+            r.candidate = static_cast<int>(i);
+            return r;
+        }
+    }
+    r.stress = apex(st);
+    r.P.setZero();
+    r.mode = st.tension_active ? kTensionApex : kShearApex;
+    r.candidate = kApex;
+    return r;
+}
+
+// Equivalent plastic deviatoric strain of a principal plastic strain
+// increment x: sqrt(2/3 dev(x) : dev(x)).
+inline double deviatoric_measure(const V3 &x) {
+    const V3 d = x - V3::Constant(x.sum() / 3.0);
+    return std::sqrt(2.0 / 3.0 * d.squaredNorm());
+}
+
+} // namespace talus_mc

@@ -1,0 +1,552 @@
+// The shipped Mohr-Coulomb plugin: the peer's test vectors
+// (tests/data/cbgeo_mohr_coulomb_vectors.csv), the partition of the trial
+// space among the return candidates, the consistent tangent at each kind of
+// return, implicit softening, the parameter bounds and the treatment of a
+// start stress outside the surface.
+#include "test_paths.hpp"
+
+#include "../../plugins/mohr_coulomb/principal_return.hpp"
+
+#include <talus/error.hpp>
+#include <talus/plugin_loader.hpp>
+
+#include <Eigen/Dense>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <numbers>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace {
+
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+using RowMat3 = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
+using RowMat6 = Eigen::Matrix<double, 6, 6, Eigen::RowMajor>;
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+const talus::Model &model(talus::PluginRegistry &reg) {
+    return reg.load((talus::test::plugin_dir() / "talus_mohr_coulomb.so").string()).models()[0];
+}
+
+// An instance from the named parameter values, the rest at their defaults.
+std::unique_ptr<talus::MaterialInstance> make(const talus::Model &m,
+                                              const std::map<std::string, double> &given) {
+    std::vector<double> v;
+    for (const talus::ParamInfo &p : m.params()) {
+        const auto it = given.find(p.key);
+        v.push_back(it != given.end() ? it->second : p.default_value);
+    }
+    for (const auto &kv : given) {
+        bool known = false;
+        for (const talus::ParamInfo &p : m.params())
+            known |= p.key == kv.first;
+        EXPECT_TRUE(known) << kv.first;
+    }
+    return m.create(v);
+}
+
+struct Out {
+    Vec6 stress;
+    RowMat6 D;
+    std::vector<double> state;
+    talus::MaterialInstance::Result res;
+};
+
+Out call(const talus::MaterialInstance &mi, const Vec6 &s0, const Vec6 &de,
+         std::vector<double> q0 = {0.0, 0.0, 0.0}) {
+    Out o;
+    o.state.assign(q0.size(), 0.0);
+    const RowMat3 I = RowMat3::Identity();
+    const double rho = 2000.0;
+    double c = 0.0;
+    talus_batch b{};
+    b.flags = TALUS_BATCH_WANT_WAVE_SPEED | TALUS_BATCH_WANT_TANGENT;
+    b.n_points = 1;
+    b.dt = 1.0;
+    b.strain_increment = de.data();
+    b.F_start = I.data();
+    b.F_end = I.data();
+    b.density = &rho;
+    b.stress_start = s0.data();
+    b.state_start = q0.data();
+    b.stress_end = o.stress.data();
+    b.state_end = o.state.data();
+    b.wave_speed = &c;
+    b.tangent = o.D.data();
+    o.res = mi.update(b);
+    return o;
+}
+
+talus_mc::V3 principal(const Vec6 &s) {
+    Eigen::Matrix3d m;
+    m << s[0], s[3], s[5], s[3], s[1], s[4], s[5], s[4], s[2];
+    const Eigen::Vector3d e = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(m).eigenvalues();
+    return talus_mc::V3(e[2], e[1], e[0]);
+}
+
+// Strength as a test computes it: linear interpolation of the angles and
+// the cohesion between the two softening strains (the peer's law too).
+talus_mc::Strength strength(double phi, double psi, double c, double T, double kappa = 0.0,
+                            double phir = 0.0, double psir = 0.0, double cr = 0.0, double k0 = 0.0,
+                            double k1 = 0.0) {
+    double w = 0.0;
+    if (k1 > k0) w = std::clamp((kappa - k0) / (k1 - k0), 0.0, 1.0);
+    phi = (phi + (phir - phi) * w) * kDeg;
+    psi = (psi + (psir - psi) * w) * kDeg;
+    c = c + (cr - c) * w;
+    talus_mc::Strength s;
+    s.sin_phi = std::sin(phi);
+    s.cos_phi = std::cos(phi);
+    s.sin_psi = std::sin(psi);
+    s.cohesion = c;
+    s.tension = T;
+    s.tension_active = !(s.sin_phi > 0 && T * s.sin_phi > c * s.cos_phi);
+    return s;
+}
+
+std::vector<std::map<std::string, std::string>> read_csv(const std::string &file) {
+    std::ifstream in(talus::test::data_dir() / file);
+    EXPECT_TRUE(in) << file;
+    std::vector<std::map<std::string, std::string>> rows;
+    std::string line;
+    std::vector<std::string> header;
+    // RFC 4180: quoted fields may hold commas, and "" is a quote inside one
+    // (the JSON of the state-variable column).
+    auto split = [](const std::string &l) {
+        std::vector<std::string> out;
+        std::string cur;
+        bool quoted = false;
+        for (std::size_t i = 0; i < l.size(); ++i) {
+            const char ch = l[i];
+            if (ch == '"') {
+                if (quoted && i + 1 < l.size() && l[i + 1] == '"') {
+                    cur += '"';
+                    ++i;
+                } else
+                    quoted = !quoted;
+            } else if (ch == ',' && !quoted) {
+                out.push_back(cur);
+                cur.clear();
+            } else
+                cur += ch;
+        }
+        out.push_back(cur);
+        return out;
+    };
+    while (std::getline(in, line)) {
+        if (!line.empty() && line.back() == '\r') line.pop_back(); // the file has CRLF
+        if (line.empty() || line[0] == '#') continue;
+        const auto f = split(line);
+        if (header.empty()) {
+            header = f;
+            continue;
+        }
+        std::map<std::string, std::string> r;
+        for (std::size_t i = 0; i < header.size() && i < f.size(); ++i)
+            r[header[i]] = f[i];
+        rows.push_back(r);
+    }
+    return rows;
+}
+
+// The value of "key": number in the peer's state-variable JSON, or `def`.
+double json_number(const std::string &json, const std::string &key, double def) {
+    const std::string k = "\"" + key + "\":";
+    const auto at = json.find(k);
+    if (at == std::string::npos) return def;
+    return std::stod(json.substr(at + k.size()));
+}
+
+Vec6 vec(const std::map<std::string, std::string> &r, const std::string &prefix) {
+    const char *c[] = {"xx", "yy", "zz", "xy", "yz", "xz"};
+    Vec6 v;
+    for (int i = 0; i < 6; ++i)
+        v[i] = std::stod(r.at(prefix + c[i]));
+    return v;
+}
+
+} // namespace
+
+// The peer's 21 vectors. Trial stress, Haigh-Westergaard invariants and the
+// two yield-function values are deterministic functions of the inputs, so
+// they are compared to 1e-9 of the stress scale: the CSV prints 16-17
+// digits and the eigen decomposition loses a few ulps. The returned stress
+// depends on the algorithm (the peer smooths its potential and updates the
+// strength explicitly), so only its defining property is compared: on the
+// surface of the strength at the end of the increment, on the same surface
+// (shear or tension) as the peer's where the peer's is on one.
+TEST(MohrCoulomb, PeerVectorsTrialInvariantsYieldValuesAndReturnOnTheSurface) {
+    talus::PluginRegistry reg;
+    const talus::Model &m = model(reg);
+    const auto rows = read_csv("cbgeo_mohr_coulomb_vectors.csv");
+    ASSERT_EQ(rows.size(), 21u);
+    int n = 0;
+    for (const auto &r : rows) {
+        SCOPED_TRACE("row " + std::to_string(n++) + ": " + r.at("section"));
+        const double E = std::stod(r.at("E")), nu = std::stod(r.at("nu"));
+        const double phi = std::stod(r.at("phi_deg")), psi = std::stod(r.at("psi_deg"));
+        const double c = std::stod(r.at("c")), T = std::stod(r.at("T"));
+        const bool soft = r.at("softening") == "True";
+        const double phir = std::stod(r.at("phi_r_deg")), psir = std::stod(r.at("psi_r_deg"));
+        const double cr = std::stod(r.at("c_r")), k0 = std::stod(r.at("pdstrain_peak")),
+                     k1 = std::stod(r.at("pdstrain_res"));
+        const double kappa0 = json_number(r.at("sv_override"), "pdstrain", 0.0);
+        const Vec6 s0 = vec(r, "s0_"), trial_ref = vec(r, "trial_");
+        // The peer's increments are engineering shear (header: de_gxy).
+        Vec6 de;
+        de << std::stod(r.at("de_xx")), std::stod(r.at("de_yy")), std::stod(r.at("de_zz")),
+            std::stod(r.at("de_gxy")), std::stod(r.at("de_gyz")), std::stod(r.at("de_gxz"));
+        const double scale = trial_ref.cwiseAbs().maxCoeff();
+
+        // Trial stress: the plugin's elastic predictor, seen by making the
+        // strength unreachable.
+        const auto elastic = make(m, {{"youngs_modulus", E},
+                                      {"poisson_ratio", nu},
+                                      {"friction_angle", phi},
+                                      {"cohesion", 1e30},
+                                      {"tension_cutoff", 1e30}});
+        const Out tr = call(*elastic, s0, de);
+        ASSERT_TRUE(tr.res.ok()) << tr.res.message;
+        for (int i = 0; i < 6; ++i)
+            EXPECT_NEAR(tr.stress[i], trial_ref[i], 1e-9 * scale) << "trial component " << i;
+
+        // Invariants: epsilon = I1 / sqrt 3, rho = sqrt(2 J2), Lode angle
+        // theta in [0, pi/3] with cos 3 theta = 3 sqrt 3 / 2 J3 / J2^1.5.
+        const talus_mc::V3 p = principal(tr.stress);
+        const double I1 = p.sum();
+        const talus_mc::V3 d = p - talus_mc::V3::Constant(I1 / 3.0);
+        const double J2 = 0.5 * d.squaredNorm(), J3 = d.prod();
+        const double theta =
+            std::acos(std::clamp(1.5 * std::sqrt(3.0) * J3 / std::pow(J2, 1.5), -1.0, 1.0)) / 3.0;
+        EXPECT_NEAR(I1 / std::sqrt(3.0), std::stod(r.at("trial_epsilon")), 1e-9 * scale);
+        EXPECT_NEAR(std::sqrt(2.0 * J2), std::stod(r.at("trial_rho")), 1e-9 * scale);
+        // theta near 0 or pi/3 is ill-conditioned in acos: 1e-6 rad.
+        EXPECT_NEAR(theta, std::stod(r.at("trial_theta")), 1e-6);
+
+        // Yield values, the plugin's planes at the start state's strength:
+        // the peer's shear function is the plane divided by 2 cos phi.
+        const talus_mc::Strength st = soft
+                                          ? strength(phi, psi, c, T, kappa0, phir, psir, cr, k0, k1)
+                                          : strength(phi, psi, c, T);
+        const double fs_trial = talus_mc::shear_yield(p, st) / (2.0 * st.cos_phi);
+        EXPECT_NEAR(fs_trial, std::stod(r.at("F_shear_trial")), 1e-9 * scale);
+        EXPECT_NEAR(p[0] - T, std::stod(r.at("F_tens_trial")), 1e-9 * scale);
+        const talus_mc::V3 p0 = principal(s0);
+        EXPECT_NEAR(talus_mc::shear_yield(p0, st) / (2.0 * st.cos_phi),
+                    std::stod(r.at("F_shear_s0")), 1e-9 * scale);
+
+        // The return.
+        std::map<std::string, double> params = {{"youngs_modulus", E},   {"poisson_ratio", nu},
+                                                {"friction_angle", phi}, {"dilation_angle", psi},
+                                                {"cohesion", c},         {"tension_cutoff", T}};
+        if (soft) {
+            params["softening"] = 1.0;
+            params["residual_friction_angle"] = phir;
+            params["residual_dilation_angle"] = psir;
+            params["residual_cohesion"] = cr;
+            params["softening_start"] = k0;
+            params["softening_end"] = k1;
+        }
+        const auto mc = make(m, params);
+        const Out o = call(*mc, s0, de, {kappa0, 0.0, 0.0});
+        ASSERT_TRUE(o.res.ok()) << o.res.message;
+        const double kappa1 = o.state[0];
+        EXPECT_GT(kappa1, kappa0); // every row is plastic
+        const talus_mc::Strength st1 =
+            soft ? strength(phi, psi, c, T, kappa1, phir, psir, cr, k0, k1) : st;
+        const talus_mc::V3 q = principal(o.stress);
+        const double fs = talus_mc::shear_yield(q, st1) / (2.0 * st1.cos_phi);
+        const double ft = st1.tension_active ? q[0] - T : -1.0;
+        // On the surface: the larger of the two values is zero and neither
+        // is positive, to the rounding of the linear solves.
+        EXPECT_NEAR(std::max(fs, ft), 0.0, 1e-9 * scale);
+        const double peer_fs = std::stod(r.at("F_shear_at_expected"));
+        const double peer_ft = std::stod(r.at("F_tens_at_expected"));
+        if (std::abs(peer_fs) < 1e-6 * scale) {
+            EXPECT_NEAR(fs, 0.0, 1e-9 * scale) << "shear";
+        }
+        if (std::abs(peer_ft) < 1e-6 * scale) {
+            EXPECT_NEAR(ft, 0.0, 1e-9 * scale) << "tension";
+        }
+    }
+}
+
+// The candidates partition the trial space: at random trial stresses, for
+// associated and non-associated flow, with and without an active cut-off,
+// every valid candidate returns the same stress (so the order of trial does
+// not choose the answer), and where none is valid the return goes to the
+// apex from beyond it.
+TEST(MohrCoulomb, ReturnCandidatesPartitionTheTrialSpace) {
+    std::mt19937_64 rng(7);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    talus_mc::Elastic el;
+    el.shear = 1e7 / 2.6;
+    el.lambda = 1e7 * 0.3 / (1.3 * 0.4);
+    struct Set {
+        double phi, psi, c, T;
+    };
+    const Set sets[] = {{30, 30, 1e4, 0},  {30, 10, 1e4, 5e3}, {35, 0, 0, 0},
+                        {20, 5, 2e4, 1e9}, {0, 0, 1e4, 5e3},   {40, 40, 0, 0}};
+    int checked = 0;
+    std::map<int, int> modes;
+    for (const Set &s : sets) {
+        const talus_mc::Strength st = strength(s.phi, s.psi, s.c, s.T);
+        const talus_mc::Planes pl(st);
+        for (int k = 0; k < 4000; ++k) {
+            talus_mc::V3 t(u(rng), u(rng), u(rng));
+            t *= 1e5;
+            std::sort(t.data(), t.data() + 3, std::greater<>());
+            const double tol = talus_mc::stress_tolerance(t, st);
+            if (talus_mc::admissible(t, st, tol)) continue;
+            std::vector<talus_mc::Return> valid;
+            for (const auto &c : talus_mc::kCandidates) {
+                if (!talus_mc::enabled(c, st)) continue;
+                talus_mc::Return r;
+                if (talus_mc::try_candidate(c, t, pl, el, st, tol, r)) valid.push_back(r);
+            }
+            const talus_mc::Return chosen = talus_mc::return_map(t, st, el);
+            if (valid.empty()) {
+                // The apex, and only beyond it: a return to the apex has
+                // non-negative plastic volume change (the potentials'
+                // volumetric part 2 sin psi and the cut-off's are >= 0).
+                EXPECT_EQ(chosen.candidate, talus_mc::kApex);
+                EXPECT_GE(t.mean(), talus_mc::apex(st)[0] - tol) << t.transpose();
+                ++modes[chosen.mode];
+                ++checked;
+                continue;
+            }
+            EXPECT_LT((chosen.stress - valid[0].stress).norm(), 1e-8 * t.norm());
+            for (const auto &r : valid)
+                // 1e-8 of the trial: the linear solves of different
+                // candidates reach the same point with different rounding.
+                EXPECT_LT((r.stress - valid[0].stress).norm(), 1e-8 * t.norm())
+                    << "trial " << t.transpose() << ": modes " << valid[0].mode << " and "
+                    << r.mode;
+            ++modes[valid[0].mode];
+            ++checked;
+        }
+    }
+    EXPECT_GT(checked, 10000);
+    // Every kind of return occurred at least once.
+    for (int mode = 1; mode < talus_mc::kModeCount; ++mode)
+        EXPECT_GT(modes[mode], 0) << "mode " << mode << " never reached";
+}
+
+namespace {
+
+// Central differences of the plugin's stress in the strain increment.
+RowMat6 fd_tangent(const talus::MaterialInstance &mi, const Vec6 &s0, const Vec6 &de,
+                   const std::vector<double> &q0, double h) {
+    RowMat6 fd;
+    for (int j = 0; j < 6; ++j) {
+        Vec6 a = de, b = de;
+        a[j] += h;
+        b[j] -= h;
+        fd.col(j) = (call(mi, s0, a, q0).stress - call(mi, s0, b, q0).stress) / (2.0 * h);
+    }
+    return fd;
+}
+
+} // namespace
+
+// The consistent tangent against central differences at every kind of
+// return, each reached on purpose (the yield_mode state says which), with a
+// rotated principal frame so that every shear term is exercised, and with
+// and without softening. Each state lies inside its region of the trial
+// space, where the return is smooth: h = 1e-9 on increments of ~1e-3 has
+// truncation ~(h/de)^2 ~ 1e-12 and round-off ~1e-16 |sigma| / (h E) ~ 1e-9
+// of the modulus; 1e-6 of the modulus separates those from a wrong term
+// (the spin term alone is 2G (1 - ratio), order one where the return is
+// large).
+TEST(MohrCoulomb, TangentIsTheDerivativeAtEveryKindOfReturn) {
+    talus::PluginRegistry reg;
+    const talus::Model &m = model(reg);
+    // A rotation that mixes all axes, so principal frames are not the axes.
+    const Eigen::Matrix3d R = (Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitZ()) *
+                               Eigen::AngleAxisd(-0.7, Eigen::Vector3d::UnitY()) *
+                               Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitX()))
+                                  .toRotationMatrix();
+    auto rotate_strain = [&](const Eigen::Vector3d &principal) {
+        const Eigen::Matrix3d e = R * principal.asDiagonal() * R.transpose();
+        Vec6 v;
+        v << e(0, 0), e(1, 1), e(2, 2), 2 * e(0, 1), 2 * e(1, 2), 2 * e(0, 2);
+        return v;
+    };
+    auto rotate_stress = [&](const Eigen::Vector3d &principal) {
+        const Eigen::Matrix3d s = R * principal.asDiagonal() * R.transpose();
+        Vec6 v;
+        v << s(0, 0), s(1, 1), s(2, 2), s(0, 1), s(1, 2), s(0, 2);
+        return v;
+    };
+    struct Case {
+        const char *what;
+        std::map<std::string, double> params;
+        Eigen::Vector3d s0; // principal start stress
+        Eigen::Vector3d de; // principal strain increment (same frame)
+        int mode;
+        double kappa0 = 0.0;
+    };
+    const std::map<std::string, double> base = {{"youngs_modulus", 1e7}, {"poisson_ratio", 0.3},
+                                                {"friction_angle", 30},  {"dilation_angle", 10},
+                                                {"cohesion", 1e4},       {"tension_cutoff", 1e9}};
+    auto with = [&](std::map<std::string, double> extra) {
+        std::map<std::string, double> p = base;
+        for (const auto &kv : extra)
+            p[kv.first] = kv.second;
+        return p;
+    };
+    const auto soft = with({{"softening", 1},
+                            {"residual_friction_angle", 20},
+                            {"residual_dilation_angle", 0},
+                            {"residual_cohesion", 2e3},
+                            {"softening_start", 0},
+                            {"softening_end", 0.01}});
+    const Eigen::Vector3d p0(-1e4, -1e4, -1e4);
+    const auto cut = with({{"tension_cutoff", 5e3}});
+    const std::vector<Case> cases = {
+        {"elastic", base, p0, {-1e-4, 2e-5, 1e-5}, talus_mc::kElastic},
+        {"shear plane", base, p0, {-1e-2, -2e-3, 8e-3}, talus_mc::kShearPlane},
+        {"compression edge", base, p0, {-1e-2, 3e-3, 3.2e-3}, talus_mc::kCompressionEdge},
+        {"extension edge", base, p0, {-3.2e-3, -3e-3, 1e-2}, talus_mc::kExtensionEdge},
+        {"shear apex", base, p0, {2e-2, 2.1e-2, 2.2e-2}, talus_mc::kShearApex},
+        {"tension plane", cut, p0, {1.46e-3, 1.6e-4, -1e-4}, talus_mc::kTensionPlane},
+        {"tension edge", cut, p0, {1.19e-3, 1.06e-3, -3.7e-4}, talus_mc::kTensionEdge},
+        {"tension apex", cut, p0, {2e-2, 2.1e-2, 2.2e-2}, talus_mc::kTensionApex},
+        {"shear-tension line", cut, p0, {4e-3, -1e-3, -1.5e-3}, talus_mc::kShearTensionLine},
+        {"softening plane", soft, p0, {-1e-2, -2e-3, 8e-3}, talus_mc::kShearPlane, 1e-3},
+        {"softening compression edge",
+         soft,
+         p0,
+         {-1e-2, 3e-3, 3.2e-3},
+         talus_mc::kCompressionEdge,
+         2e-3},
+        {"softening apex", soft, p0, {2e-2, 2.1e-2, 2.2e-2}, talus_mc::kShearApex, 1e-3},
+    };
+    for (const Case &c : cases) {
+        SCOPED_TRACE(c.what);
+        const auto mi = make(m, c.params);
+        const Vec6 s0 = rotate_stress(c.s0), de = rotate_strain(c.de);
+        const std::vector<double> q0 = {c.kappa0, 0.0, 0.0};
+        const Out o = call(*mi, s0, de, q0);
+        ASSERT_TRUE(o.res.ok()) << o.res.message;
+        EXPECT_EQ(static_cast<int>(o.state[2]), c.mode);
+        if (c.mode != talus_mc::kElastic && c.params.count("softening")) {
+            EXPECT_GT(o.state[0], c.kappa0) << "softening case must be plastic";
+        }
+        const RowMat6 fd = fd_tangent(*mi, s0, de, q0, 1e-9);
+        // Relative to the P-wave modulus lambda + 2G = 1.35e7: at the
+        // apex the tangent is zero.
+        const double scale = 1e7 * 0.7 / (1.3 * 0.4);
+        EXPECT_LT((o.D - fd).cwiseAbs().maxCoeff(), 1e-6 * scale) << "D\n" << o.D << "\nfd\n" << fd;
+    }
+}
+
+// Implicit softening: the returned stress lies on the surface of the
+// strength at the END of the increment (kappa_n+1), not at its start, and
+// kappa_n+1 - kappa_n is the deviatoric measure of the plastic strain of
+// that same return (computed here from the elastic law).
+TEST(MohrCoulomb, SofteningIsImplicit) {
+    talus::PluginRegistry reg;
+    const auto mi = make(model(reg), {{"youngs_modulus", 1e7},
+                                      {"poisson_ratio", 0.25},
+                                      {"friction_angle", 35},
+                                      {"dilation_angle", 10},
+                                      {"cohesion", 2e4},
+                                      {"softening", 1},
+                                      {"residual_friction_angle", 25},
+                                      {"residual_dilation_angle", 0},
+                                      {"residual_cohesion", 0},
+                                      {"softening_start", 1e-3},
+                                      {"softening_end", 2e-2}});
+    Vec6 s0;
+    s0 << -2e4, -2.4e4, -1.8e4, 2e3, -1e3, 4e2;
+    Vec6 de;
+    de << -2e-2, 6e-3, 3e-3, 6e-3, 2e-3, -4e-3;
+    const double kappa0 = 1.5e-3;
+    const Out o = call(*mi, s0, de, {kappa0, 0.0, 0.0});
+    ASSERT_TRUE(o.res.ok()) << o.res.message;
+    const double k1 = o.state[0];
+    ASSERT_GT(k1, kappa0 + 1e-4) << "the case must soften noticeably";
+    const talus_mc::Strength st1 = strength(35, 10, 2e4, 0, k1, 25, 0, 0, 1e-3, 2e-2);
+    const talus_mc::V3 q = principal(o.stress);
+    const double scale = s0.cwiseAbs().maxCoeff();
+    // 1e-9 of the stress: the kappa iteration stops at 1e-14 of the strain
+    // range (a strength change of ~1e-12) and the solves lose a few ulps.
+    EXPECT_NEAR(talus_mc::shear_yield(q, st1), 0.0, 1e-9 * scale);
+    // Not on the surface of the start strength (which is stronger).
+    const talus_mc::Strength st0 = strength(35, 10, 2e4, 0, kappa0, 25, 0, 0, 1e-3, 2e-2);
+    EXPECT_LT(talus_mc::shear_yield(q, st0), -1e-3 * scale);
+    // The plastic strain is the total increment minus the elastic one.
+    const double E = 1e7, G = E / 2.5, K = E / 1.5; // nu = 0.25
+    const Vec6 ds = o.stress - s0;
+    const double mean = (ds[0] + ds[1] + ds[2]) / 3.0;
+    Eigen::Matrix3d ee;
+    ee << ds[0] - mean, ds[3], ds[5], ds[3], ds[1] - mean, ds[4], ds[5], ds[4], ds[2] - mean;
+    ee /= 2.0 * G;
+    ee += Eigen::Matrix3d::Identity() * mean / (3.0 * K);
+    Eigen::Matrix3d e;
+    e << de[0], de[3] / 2, de[5] / 2, de[3] / 2, de[1], de[4] / 2, de[5] / 2, de[4] / 2, de[2];
+    const Eigen::Matrix3d ep = e - ee;
+    const Eigen::Matrix3d dev = ep - Eigen::Matrix3d::Identity() * ep.trace() / 3.0;
+    // 1e-9 relative: the same rounding as above, in strain.
+    EXPECT_NEAR(k1 - kappa0, std::sqrt(2.0 / 3.0 * dev.squaredNorm()), 1e-9 * (k1 - kappa0));
+    EXPECT_NEAR(o.state[1], ep.trace(), 1e-9 * std::abs(ep.trace()));
+}
+
+// Bounds that reject nonsense, each message naming the parameter.
+TEST(MohrCoulomb, RejectsNonsenseNamingTheParameter) {
+    talus::PluginRegistry reg;
+    const talus::Model &m = model(reg);
+    const std::map<std::string, double> ok = {
+        {"youngs_modulus", 1e7}, {"poisson_ratio", 0.3}, {"friction_angle", 30}};
+    auto message = [&](std::map<std::string, double> extra) -> std::string {
+        std::map<std::string, double> p = ok;
+        for (const auto &kv : extra)
+            p[kv.first] = kv.second;
+        try {
+            make(m, p);
+        } catch (const talus::Error &e) {
+            return e.what();
+        }
+        return "";
+    };
+    EXPECT_TRUE(talus::test::contains(message({{"dilation_angle", 35}}), "dilation_angle"));
+    EXPECT_TRUE(talus::test::contains(message({{"dilation_angle", 35}}), "friction_angle"));
+    EXPECT_TRUE(talus::test::contains(message({{"softening", 1},
+                                               {"softening_end", 0.01},
+                                               {"residual_friction_angle", 10},
+                                               {"residual_dilation_angle", 12}}),
+                                      "residual_dilation_angle"));
+    EXPECT_TRUE(talus::test::contains(message({{"softening", 1}}), "softening_end"));
+    EXPECT_TRUE(talus::test::contains(message({{"residual_cohesion", 5}}), "softening: true"));
+    EXPECT_EQ(message({}), "");
+}
+
+// A start stress outside the surface (a user's initial stress) is
+// projected onto it by the return, without plastic strain; a zero
+// increment then returns the projected stress, and that stress is a fixed
+// point (a second zero increment changes nothing).
+TEST(MohrCoulomb, StartStressOutsideTheSurfaceIsProjectedWithoutPlasticStrain) {
+    talus::PluginRegistry reg;
+    const auto mi = make(model(reg), {{"youngs_modulus", 1e7},
+                                      {"poisson_ratio", 0.3},
+                                      {"friction_angle", 30},
+                                      {"dilation_angle", 0},
+                                      {"cohesion", 0}});
+    Vec6 s0;
+    s0 << -1e5, -4e5, -1e5, 5e4, 0, 0; // q far beyond the c = 0 cone
+    const Out o = call(*mi, s0, Vec6::Zero(), {0.0, 0.0, 0.0});
+    ASSERT_TRUE(o.res.ok()) << o.res.message;
+    EXPECT_EQ(o.state[0], 0.0);
+    EXPECT_EQ(o.state[1], 0.0);
+    const talus_mc::V3 q = principal(o.stress);
+    EXPECT_NEAR(talus_mc::shear_yield(q, strength(30, 0, 0, 0)), 0.0, 1e-9 * 4e5);
+    const Out again = call(*mi, o.stress, Vec6::Zero(), {0.0, 0.0, 0.0});
+    EXPECT_LT((again.stress - o.stress).cwiseAbs().maxCoeff(), 1e-9 * 4e5);
+    EXPECT_EQ(static_cast<int>(again.state[2]), talus_mc::kElastic);
+}
