@@ -8,6 +8,8 @@
 #include <talus/output_file.hpp>
 #include <talus/plugin_loader.hpp>
 #include <talus/point_driver.hpp>
+
+#include "point_plot.hpp"
 #include <talus/run.hpp>
 #include <talus/scenario.hpp>
 #include <talus/yaml_input.hpp>
@@ -157,6 +159,15 @@ int main(int argc, char **argv) {
         ->type_name("CASE.yaml");
     point->add_option("-o,--output", csv_out, "Write the CSV here instead of standard output")
         ->type_name("OUT.csv");
+    std::string plot_png;
+    point
+        ->add_option("--plot", plot_png,
+                     "Also draw the four panels of a soil test (q and volumetric strain against "
+                     "axial strain, the q - p' path, the controlled quantities) with matplotlib")
+        ->type_name("FILE.png");
+    bool show_stages = false;
+    point->add_flag("--print-stages", show_stages,
+                    "Print each stage's six conditions (presets expanded) and stop");
 
     // talus plugin info|check|list
     auto *plugin = app.add_subcommand("plugin", "Inspect and check material plugins");
@@ -287,13 +298,57 @@ int main(int argc, char **argv) {
             wrong_file(case_file, YamlKind::point_case, "point");
             const talus::yaml::Node root = talus::yaml::load_file(case_file);
             const talus::PointCase pc = talus::read_point_case(root, registry);
-            const auto rows = talus::run_point_case(pc);
-            std::ostringstream csv;
-            talus::write_point_csv(csv, pc.instance->model(), rows);
+            if (show_stages) {
+                talus::print_stages(std::cout, pc);
+                return 0;
+            }
+            std::vector<talus::PointRow> rows;
+            auto csv_text = [&] {
+                std::ostringstream csv;
+                talus::write_point_csv(csv, pc.instance->model(), pc.axis, rows);
+                return csv.str();
+            };
+            try {
+                talus::run_point_case(pc, rows);
+            } catch (const talus::Error &e) {
+                // The rows up to the failure go beside the requested file,
+                // under a name that cannot be mistaken for a result.
+                if (csv_out.empty() || rows.empty()) throw;
+                const std::string partial = csv_out + ".failed.csv";
+                talus::write_file_atomically(partial, csv_text());
+                throw talus::Error(fmt::format("{}\n(the {} rows computed until then are in {}; "
+                                               "{} was not written)",
+                                               e.what(), rows.size(), partial, csv_out));
+            }
+            const std::string csv = csv_text();
             if (csv_out.empty())
-                std::cout << csv.str();
+                std::cout << csv;
             else
-                talus::write_file_atomically(csv_out, csv.str());
+                talus::write_file_atomically(csv_out, csv);
+            if (!plot_png.empty()) {
+                std::filesystem::path source = csv_out;
+                std::filesystem::path tmp;
+                if (csv_out.empty()) {
+                    tmp = std::filesystem::path(plot_png).replace_extension(".plot-data.csv");
+                    talus::write_file_atomically(tmp, csv);
+                    source = tmp;
+                }
+                talus::plot_point_csv(
+                    source, plot_png,
+                    fmt::format("{} - {}", std::filesystem::path(case_file).filename().string(),
+                                pc.instance->model().id()));
+                if (!tmp.empty()) std::filesystem::remove(tmp);
+            }
+            if (pc.compare) {
+                const std::string report = talus::compare_point_rows(pc, rows);
+                if (!report.empty()) {
+                    std::cerr << "talus point: " << report;
+                    return 3;
+                }
+                std::cerr << fmt::format("talus point: compare: every value within tolerance of "
+                                         "{}\n",
+                                         pc.compare->file);
+            }
             return 0;
         }
         if (info->parsed()) {

@@ -174,10 +174,12 @@ struct Return {
 
 // Tolerance of the validity tests, relative to the stress scale of the
 // problem: the linear solves lose a few ulps of the largest stress, so 1e-10
-// of it separates rounding from a real violation with a wide margin.
+// of it separates rounding from a real violation with a wide margin. The
+// cut-off T is not part of the scale: a large T (a cut-off in effect
+// switched off) would blur the yield point; where T matters the stress is
+// of its size anyway.
 inline double stress_tolerance(const V3 &trial, const Strength &st) {
-    return 1e-10 *
-           std::max({trial.cwiseAbs().maxCoeff(), st.cohesion, std::abs(st.tension), 1e-300});
+    return 1e-10 * std::max({trial.cwiseAbs().maxCoeff(), st.cohesion, 1e-300});
 }
 
 // Whether the ordered principal stress s lies inside the yield surface.
