@@ -145,6 +145,29 @@ ExitCondition read_until(const yaml::Node &n) {
 
 namespace {
 
+ReplayCall read_replay(const yaml::Node &n) {
+    constexpr std::array<std::string_view, 8> keys = {
+        "time", "dt", "density", "strain_increment", "F_start", "F_end", "stress", "state"};
+    n.allow_keys(keys);
+    ReplayCall r;
+    r.time = n.require("time").as_double();
+    r.dt = n.require("dt").as_double();
+    r.density = n.require("density").as_double();
+    if (!(r.density > 0.0)) n.require("density").fail("expected density > 0 (kg/m^3)");
+    auto fixed = [&](const char *key, std::size_t size, double *out) {
+        const std::vector<double> v = n.require(key).as_doubles();
+        if (v.size() != size)
+            n.require(key).fail(fmt::format("expected {} numbers, got {}", size, v.size()));
+        std::copy(v.begin(), v.end(), out);
+    };
+    fixed("strain_increment", 6, r.strain_increment.data());
+    fixed("stress", 6, r.stress.data());
+    fixed("F_start", 9, r.F_start.data());
+    fixed("F_end", 9, r.F_end.data());
+    if (const yaml::Node q = n.get("state"); q.defined()) r.state = q.as_doubles();
+    return r;
+}
+
 void read_duration(const yaml::Node &s, Stage &st) {
     if (const yaml::Node d = s.get("duration"); d.defined()) {
         st.duration = d.as_double();
@@ -159,12 +182,21 @@ void read_duration(const yaml::Node &s, Stage &st) {
 
 // A stage written in the general form.
 Stage read_general_stage(const yaml::Node &s) {
-    constexpr std::array<std::string_view, 9> keys = {"name",    "duration",    "increments",
-                                                      "control", "constraints", "free",
-                                                      "until",   "rotation",    "zero_strain"};
+    constexpr std::array<std::string_view, 10> keys = {
+        "name", "duration", "increments", "control", "constraints",
+        "free", "until",    "rotation",   "replay",  "zero_strain"};
     s.allow_keys(keys);
     Stage st;
     st.where = s.where();
+    if (const yaml::Node rp = s.get("replay"); rp.defined()) {
+        st.replay = read_replay(rp);
+        for (const char *k : {"control", "constraints", "free", "until", "rotation", "increments",
+                              "duration", "zero_strain"})
+            if (s.get(k).defined())
+                s.get(k).fail("a replay stage is one plugin call with the given inputs: remove "
+                              "this key");
+        return st;
+    }
     read_duration(s, st);
     if (const yaml::Node z = s.get("zero_strain"); z.defined()) st.zero_strain = z.as_bool();
     if (const yaml::Node rot = s.get("rotation"); rot.defined()) {
@@ -395,6 +427,12 @@ PointCase read_point_case(const yaml::Node &root, PluginRegistry &registry) {
                          [&](const Stage &st) { return st.name == pc.compare->stage; }))
             cmp.get("stage").fail(fmt::format("no stage is named '{}'", pc.compare->stage));
     }
+    for (const Stage &st : pc.stages)
+        if (st.replay && st.replay->state.size() != pc.material.initial_state.size())
+            throw Error(fmt::format("{}: error: stage '{}': replay state has {} values, model "
+                                    "'{}' has {}",
+                                    st.where, st.name, st.replay->state.size(),
+                                    pc.instance->model().id(), pc.material.initial_state.size()));
     // Exit conditions must name a quantity the driver knows.
     for (const Stage &st : pc.stages)
         if (st.until) {
@@ -531,11 +569,15 @@ class Runner {
     // end deformation gradient F1.
     Call call(const PointState &s, const Vec6 &de, const Mat3 &F1, double t, double dt,
               bool want_tangent) const {
+        return call_with_density(s, de, F1, t, dt, pc_.material.density / F1.determinant(),
+                                 want_tangent);
+    }
+    Call call_with_density(const PointState &s, const Vec6 &de, const Mat3 &F1, double t, double dt,
+                           double rho, bool want_tangent = false) const {
         Call c;
         c.state.resize(s.state.size());
         const Vec6 g = to_engineering(de);
         const RowMat3 F0r = s.F, F1r = F1;
-        const double rho = pc_.material.density / F1.determinant();
         double wave = 0.0;
         Eigen::Matrix<double, 6, 6, Eigen::RowMajor> D;
         talus_batch b{};
@@ -737,9 +779,40 @@ class Runner {
         s.state = c.state;
     }
 
+    // The replayed call: exactly the recorded inputs, one call, no cuts.
+    double replay(const Stage &st, double t, PointState &s) {
+        const ReplayCall &r = *st.replay;
+        PointState start;
+        start.stress = r.stress;
+        start.state = r.state;
+        start.F = Eigen::Map<const RowMat3>(r.F_start.data());
+        start.eps = s.eps;
+        Vec6 de = r.strain_increment;
+        de.tail<3>() *= 0.5; // call() takes tensor components
+        const Mat3 F1 = Eigen::Map<const RowMat3>(r.F_end.data());
+        Call c = call_with_density(start, de, F1, r.time, r.dt, r.density);
+        if (c.result.status == TALUS_STATUS_CUT_STEP)
+            fail(st, r.time,
+                 fmt::format("model '{}' ({}) asks for a smaller step (factor {:g}): {}",
+                             model().id(), model().library().path().string(), c.result.cut_factor,
+                             c.result.message));
+        if (!c.result.ok())
+            fail(st, r.time,
+                 fmt::format("model '{}' ({}) failed: {}", model().id(),
+                             model().library().path().string(), c.result.message));
+        s = start;
+        s.F = F1;
+        s.eps += de;
+        s.stress = c.stress;
+        s.state = c.state;
+        record(t + r.dt, stage_index_ + 1, s);
+        return t + r.dt;
+    }
+
     // Runs one stage from global time t; returns the time at its end.
     double run_stage(const Stage &st, double t, PointState &s) {
         const int number = stage_index_ + 1;
+        if (st.replay) return replay(st, t, s);
         if (st.zero_strain) {
             // The lab's reset after consolidation: strains count from here
             // (F, and so the density, keeps the whole history).
@@ -864,6 +937,58 @@ void write_point_csv(std::ostream &out, const Model &model, int axis,
     }
 }
 
+namespace {
+std::string one_line(std::string s) {
+    std::replace(s.begin(), s.end(), '\n', ' ');
+    return s;
+}
+// YAML single-quoted scalar body: a quote is written twice.
+std::string single_quoted(const std::string &s) {
+    std::string out;
+    for (char c : s)
+        out += c == '\'' ? std::string("''") : std::string(1, c);
+    return out;
+}
+} // namespace
+
+std::string replay_case_yaml(const FailedCall &fc, const Scenario &sc) {
+    const NamedMaterial &m = sc.materials.at(fc.material);
+    const Model &model = *m.spec.model;
+    auto list = [](const auto &v) {
+        std::string s = "[";
+        for (std::size_t i = 0; i < v.size(); ++i)
+            s += fmt::format("{}{:.17g}", i ? ", " : "", v[i]);
+        return s + "]";
+    };
+    std::string y = fmt::format(
+        "# Replays the plugin call that failed in `talus run {}`: material '{}', particle {}, "
+        "step {},\n# t = {:.17g} s. The inputs are those the plugin received (engineering shear, "
+        "row-major F,\n# stress tension positive). Run: talus point THIS_FILE\n"
+        "# The plugin said: {}\n",
+        sc.file, m.name, fc.particle, fc.step, fc.time, one_line(fc.message));
+    y += "talus: 1\n";
+    y += fmt::format("plugins: ['{}']\n", single_quoted(model.library().path().string()));
+    y += fmt::format("material:\n  model: {}\n  density: {:.17g}\n", model.id(), m.spec.density);
+    for (std::size_t i = 0; i < model.params().size(); ++i) {
+        const ParamInfo &p = model.params()[i];
+        const double v = m.spec.param_values[i];
+        if (p.type == TALUS_PARAM_BOOLEAN)
+            y += fmt::format("  {}: {}\n", p.key, v != 0.0 ? "true" : "false");
+        else if (p.type == TALUS_PARAM_INTEGER)
+            y += fmt::format("  {}: {}\n", p.key, static_cast<long long>(v));
+        else
+            y += fmt::format("  {}: {:.17g}\n", p.key, v);
+    }
+    y += "stages:\n  - name: failed call\n    replay:\n";
+    y += fmt::format("      time: {:.17g}\n      dt: {:.17g}\n      density: {:.17g}\n", fc.time,
+                     fc.dt, fc.density);
+    y += fmt::format("      strain_increment: {}\n", list(fc.strain_increment));
+    y += fmt::format("      F_start: {}\n      F_end: {}\n", list(fc.F_start), list(fc.F_end));
+    y += fmt::format("      stress: {}\n", list(fc.stress));
+    y += fmt::format("      state: {}\n", list(fc.state));
+    return y;
+}
+
 void print_stages(std::ostream &out, const PointCase &pc) {
     auto value_text = [](const ControlValue &v) {
         switch (v.kind) {
@@ -880,6 +1005,10 @@ void print_stages(std::ostream &out, const PointCase &pc) {
         out << fmt::format("stage {} '{}': duration {:g}, {} increments{}\n", k + 1, st.name,
                            st.duration, st.increments,
                            st.until ? fmt::format(", until {}", st.until->text) : "");
+        if (st.replay) {
+            out << "  one plugin call with the recorded inputs\n";
+            continue;
+        }
         if (st.rotation) {
             out << fmt::format("  rigid rotation by {:g} deg about [{:g}, {:g}, {:g}]\n",
                                st.rotation->angle * 180.0 / std::numbers::pi, st.rotation->axis[0],

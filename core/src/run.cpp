@@ -2,6 +2,7 @@
 
 #include <talus/crash_report.hpp>
 #include <talus/output_file.hpp>
+#include <talus/point_driver.hpp>
 #include <talus/vtk_output.hpp>
 
 #include <fmt/format.h>
@@ -361,6 +362,21 @@ class RunOutput {
 
 // The crash handler's last action (crash_report.hpp): the state at the
 // crash, best effort (the heap may be what the plugin broke).
+// When a plugin failed at one particle, the driver case that replays that
+// call (`talus point`), for the message.
+std::string write_replay_case(const Simulation &sim, const fs::path &dir) noexcept {
+    if (!sim.failed_call()) return "";
+    try {
+        const fs::path file = dir / "failed_call.yaml";
+        write_file_atomically(file, replay_case_yaml(*sim.failed_call(), sim.scenario()));
+        return fmt::format("\nthe failed plugin call is replayed by: talus point {}",
+                           file.string());
+    } catch (const std::exception &e) {
+        return fmt::format("\nthe failed plugin call could not be written for replay: {}",
+                           e.what());
+    }
+}
+
 void write_state_after_crash(void *context) {
     auto *out = static_cast<RunOutput *>(context);
     const std::string where = out->write_failure();
@@ -448,7 +464,7 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
         try {
             sim.step(end - sim.time());
         } catch (const Error &e) {
-            throw Error(e.what() + out.write_failure());
+            throw Error(e.what() + out.write_failure() + write_replay_case(sim, opt.output_dir));
         }
         particle_steps += static_cast<long>(sim.particle_count());
         for (; warnings_shown < sim.warnings().size(); ++warnings_shown)

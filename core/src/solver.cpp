@@ -218,7 +218,8 @@ struct Simulation::Impl {
     void apply_bc(double *field, std::size_t offset, double t_eval);
     void kinematics_and_update(double dt, double t);
     void call_material(ParticleSet &s, std::size_t begin, std::size_t count, double t, double dt,
-                       Scratch &scr, std::string &error, int depth);
+                       Scratch &scr, std::string &error, std::optional<FailedCall> &failed,
+                       int depth);
     // The last pass of a step: positions, the leaving check, each particle's
     // slab for the next step's binning, and max(c + |v|) for its time step.
     void finish_step();
@@ -1077,7 +1078,8 @@ namespace {} // namespace
 // a cut-step request is honoured by splitting the increment (strain, and F
 // linearly between start and end) into ceil(1/factor) sub-increments.
 void Simulation::Impl::call_material(ParticleSet &s, std::size_t begin, std::size_t count, double t,
-                                     double dt, Scratch &scr, std::string &error, int depth) {
+                                     double dt, Scratch &scr, std::string &error,
+                                     std::optional<FailedCall> &failed, int depth) {
     const std::size_t ns = s.state_size;
     scr.s0.assign(s.stress.begin() + static_cast<std::ptrdiff_t>(6 * begin),
                   s.stress.begin() + static_cast<std::ptrdiff_t>(6 * (begin + count)));
@@ -1135,7 +1137,7 @@ void Simulation::Impl::call_material(ParticleSet &s, std::size_t begin, std::siz
                 F1 = A + a1 * (B - A);
                 s.rho[begin + p] = s.rho0 / F1.determinant();
             }
-            call_material(s, begin, count, t + a0 * dt, dt / k, scr, error, depth + 1);
+            call_material(s, begin, count, t + a0 * dt, dt / k, scr, error, failed, depth + 1);
             if (!error.empty()) return;
         }
         // Leave F, F_new, de and rho as they were for the caller.
@@ -1148,6 +1150,32 @@ void Simulation::Impl::call_material(ParticleSet &s, std::size_t begin, std::siz
         return;
     }
     const std::size_t p = begin + static_cast<std::size_t>(std::max<std::int64_t>(0, r.point));
+    if (r.point >= 0 && static_cast<std::size_t>(r.point) < count) {
+        // The failing point's inputs: stress and state from the copies made
+        // before the call (the plugin may have written over them), the rest
+        // unchanged inputs.
+        FailedCall fc;
+        fc.material = s.material;
+        fc.particle = s.id[p];
+        fc.step = initial_state ? 0 : sim.step_ + 1;
+        fc.time = t;
+        fc.dt = dt;
+        fc.density = s.rho[p];
+        const std::size_t k = p - begin;
+        for (std::size_t c = 0; c < 6; ++c) {
+            fc.strain_increment[c] = s.de[6 * p + c];
+            fc.stress[c] = scr.s0[6 * k + c];
+        }
+        for (std::size_t c = 0; c < 9; ++c) {
+            fc.F_start[c] = s.F[9 * p + c];
+            fc.F_end[c] = s.F_new[9 * p + c];
+        }
+        fc.state.assign(scr.q0.begin() + static_cast<std::ptrdiff_t>(ns * k),
+                        scr.q0.begin() + static_cast<std::ptrdiff_t>(ns * (k + 1)));
+        fc.cut_step = r.status == TALUS_STATUS_CUT_STEP;
+        fc.message = r.message;
+        failed = std::move(fc);
+    }
     const std::string where =
         r.point >= 0
             ? fmt::format("particle {} of group '{}' at ({:.6g}, {:.6g}{})", s.id[p],
@@ -1236,6 +1264,7 @@ void Simulation::Impl::kinematics_and_update(double dt, double t) {
 #pragma omp parallel for schedule(dynamic, 4)
         for (std::ptrdiff_t bb = 0; bb < nb; ++bb) {
             std::string local;
+            std::optional<FailedCall> local_failed;
 #ifdef _OPENMP
             Scratch &scr = scratch[static_cast<std::size_t>(omp_get_thread_num())];
 #else
@@ -1243,12 +1272,15 @@ void Simulation::Impl::kinematics_and_update(double dt, double t) {
 #endif
             const std::size_t begin = static_cast<std::size_t>(bb) * B;
             const std::size_t count = std::min(B, s.n - begin);
-            call_material(s, begin, count, t, dt, scr, local, 0);
+            call_material(s, begin, count, t, dt, scr, local, local_failed, 0);
             for (std::size_t p = begin; p < begin + count; ++p)
                 s.work[p] += 0.5 * s.J[p] * s.vol0[p] * stress_work(&s.stress[6 * p], &s.de[6 * p]);
             if (!local.empty()) {
                 std::lock_guard<std::mutex> lock(error_mutex);
-                if (error.empty()) error = local;
+                if (error.empty()) {
+                    error = local;
+                    sim.failed_call_ = std::move(local_failed);
+                }
             }
         }
         if (!error.empty()) throw Error(error);
@@ -1570,9 +1602,10 @@ Simulation::Simulation(Scenario &scenario, SolverOptions options)
     for (auto &s : sets_) {
         const std::size_t B = static_cast<std::size_t>(opt_.batch_size);
         std::string error;
+        std::optional<FailedCall> failed; // the constructor throws: nobody to tell
         for (std::size_t begin = 0; begin < s.n && error.empty(); begin += B)
             impl_->call_material(s, begin, std::min(B, s.n - begin), 0.0, 0.0, impl_->scratch[0],
-                                 error, 0);
+                                 error, failed, 0);
         if (!error.empty()) throw Error("initial state: " + error);
     }
     impl_->initial_state = false;

@@ -1,6 +1,7 @@
 // What `talus run` writes, against the solver it drives.
 #include "solver_helpers.hpp"
 
+#include <talus/point_driver.hpp>
 #include <talus/run.hpp>
 
 #include <fmt/format.h>
@@ -94,4 +95,67 @@ TEST(RunOutput, ValidateNotesASlenderGroupWithFewParticlesPerCell) {
     EXPECT_NE(slender.find("consider particles_per_cell: 3 or 4"), std::string::npos);
     EXPECT_EQ(notes_for("1.0", 3).find("slender"), std::string::npos);
     EXPECT_EQ(notes_for("0.3", 2).find("slender"), std::string::npos);
+}
+
+// Point 4 of the material-point driver work: when a plugin fails at a
+// particle inside `talus run` (or keeps asking for smaller steps), the run
+// writes a driver case with that call's inputs, and `talus point` replays it
+// to the same failure: the plugin's message, which prints the stress it
+// computed, its state (the count of accepted increments) and det F to 17
+// digits, must come out identical, so every input reached the plugin
+// unchanged. A block of the fixture `brittle_elastic` under gravity on a
+// floor fails once its von Mises stress passes 50 Pa.
+TEST(RunOutput, AFailedPluginCallIsReplayedByTheDriver) {
+    for (const bool cut : {false, true}) {
+        SCOPED_TRACE(cut ? "asks for cuts" : "fails");
+        const std::string yaml = fmt::format(
+            "talus: 1\ndimension: 2\nplugins: ['{}']\n"
+            "grid: {{origin: [0, 0], size: [1, 1], cell: 0.05}}\n"
+            "materials:\n  m: {{model: brittle_elastic, density: 1000, youngs_modulus: 1.0e5, "
+            "poisson_ratio: 0.3, strength: 50, ask_cut: {}}}\n"
+            "groups:\n  b: {{material: m, shape: {{box: {{min: [0.2, 0.0], max: [0.8, 0.4]}}}}}}\n"
+            "boundaries: {{y-: fixed}}\ngravity: [0, -9.81]\ntime: {{end: 1.0}}\n"
+            "output: {{every: 1.0, vtk: false}}\n",
+            (talus::test::fixture_dir() / "fixture_fails_on_state.so").string(),
+            cut ? "true" : "false");
+        const fs::path dir = fs::temp_directory_path() / "talus_replay_test";
+        fs::remove_all(dir);
+        auto s = talus::test::sim_from_text(yaml);
+        talus::RunOptions opt;
+        opt.output_dir = dir;
+        opt.force = true;
+        std::ostringstream log;
+        std::string run_error;
+        try {
+            talus::run_scenario(s->scenario, opt, log);
+        } catch (const talus::Error &e) {
+            run_error = e.what();
+        }
+        ASSERT_FALSE(run_error.empty()) << "the run must fail";
+        const fs::path replay = dir / "failed_call.yaml";
+        EXPECT_TRUE(talus::test::contains(run_error, "talus point " + replay.string()))
+            << run_error;
+        ASSERT_TRUE(fs::exists(replay));
+        // The plugin's own words in the run's message.
+        const auto at = run_error.find("von Mises stress ");
+        ASSERT_NE(at, std::string::npos) << run_error;
+        const std::string said = run_error.substr(at, run_error.find(')', at) - at + 1);
+        EXPECT_TRUE(talus::test::contains(said, "accepted increments (J = ")) << said;
+
+        talus::PluginRegistry reg;
+        const auto root = talus::yaml::load_file(replay.string());
+        const talus::PointCase pc = talus::read_point_case(root, reg);
+        std::string replay_error;
+        try {
+            talus::run_point_case(pc);
+        } catch (const talus::Error &e) {
+            replay_error = e.what();
+        }
+        EXPECT_TRUE(talus::test::contains(replay_error, said))
+            << "run: " << said << "\nreplay: " << replay_error;
+        EXPECT_TRUE(talus::test::contains(replay_error, cut ? "asks for a smaller step (factor 0.5)"
+                                                            : "failed: "))
+            << replay_error;
+        fs::remove_all(dir);
+    }
 }

@@ -25,6 +25,7 @@
 
 #include <talus/material_spec.hpp>
 #include <talus/plugin_loader.hpp>
+#include <talus/solver.hpp>
 #include <talus/time_function.hpp>
 #include <talus/yaml_input.hpp>
 
@@ -78,6 +79,16 @@ struct RigidRotation {
     double angle = 0.0; // radians over the stage
 };
 
+// One plugin call with exactly these inputs (ABI conventions), no
+// conditions: how a failed particle of `talus run` is replayed.
+struct ReplayCall {
+    double time = 0.0, dt = 0.0, density = 0.0;
+    PointVec6 strain_increment = PointVec6::Zero(); // engineering shear
+    std::array<double, 9> F_start{}, F_end{};       // row-major
+    PointVec6 stress = PointVec6::Zero();
+    std::vector<double> state;
+};
+
 struct Stage {
     std::string name;
     double duration = 1.0;
@@ -85,6 +96,7 @@ struct Stage {
     std::array<Condition, 6> conditions;
     std::optional<ExitCondition> until;
     std::optional<RigidRotation> rotation; // replaces the conditions
+    std::optional<ReplayCall> replay;      // replaces the conditions
     bool zero_strain = false; // strains measured from this stage's start (as a lab does)
     std::string where;        // file:line:col of the stage, for messages
 };
@@ -149,6 +161,10 @@ void write_point_csv(std::ostream &out, const Model &model, int axis,
 // The named quantity of a row (a CSV column name), or nullopt.
 std::optional<double> point_quantity(const PointRow &row, const Model &model, int axis,
                                      const std::string &name);
+
+// A driver case that replays the failed plugin call of a run (written by
+// `talus run` next to its output when a plugin fails at a particle).
+std::string replay_case_yaml(const FailedCall &call, const Scenario &scenario);
 
 // Human-readable list of the stages' conditions (--print-stages).
 void print_stages(std::ostream &out, const PointCase &pc);

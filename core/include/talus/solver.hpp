@@ -8,6 +8,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -90,6 +91,20 @@ struct SolverOptions {
     double sort_disorder = 0.01;
 };
 
+// One plugin call that failed, as the plugin received it (ABI conventions:
+// engineering shear, row-major F, Cauchy stress tension positive).
+struct FailedCall {
+    std::size_t material = 0; // index into Scenario::materials
+    std::int64_t particle = -1;
+    long step = 0;
+    double time = 0.0, dt = 0.0, density = 0.0;
+    std::array<double, 6> strain_increment{}, stress{};
+    std::array<double, 9> F_start{}, F_end{};
+    std::vector<double> state;
+    bool cut_step = false; // still asking for a smaller step after the host's cuts
+    std::string message;   // the plugin's
+};
+
 class Simulation {
   public:
     // Generates the particles of every group and the initial state; calls
@@ -135,6 +150,10 @@ class Simulation {
 
     // Warnings issued so far (fixed dt above the limit, ...), for the log.
     const std::vector<std::string> &warnings() const { return warnings_; }
+    // The inputs of the plugin call that failed at one particle, when a step
+    // threw because a plugin failed (or kept asking for smaller steps):
+    // enough for `talus point` to replay the call (point_driver.hpp).
+    const std::optional<FailedCall> &failed_call() const { return failed_call_; }
 
     struct Impl;
 
@@ -151,6 +170,7 @@ class Simulation {
     double held_depth_ = 0.0;
     bool warned_dt_ = false;
     std::vector<std::string> warnings_;
+    std::optional<FailedCall> failed_call_;
     friend struct Impl;
 };
 
