@@ -1,76 +1,19 @@
 // The `compare:` block of a driver case: the output against a reference CSV,
 // column by column, with a tolerance each, so that a driver case can be a
 // ctest (a mismatch makes `talus point` exit non-zero).
+#include <talus/csv_table.hpp>
 #include <talus/error.hpp>
 #include <talus/point_driver.hpp>
 
 #include <fmt/format.h>
 
 #include <cmath>
-#include <fstream>
-#include <sstream>
 
 namespace talus {
 
-namespace {
-
-struct Table {
-    std::vector<std::string> header;
-    std::vector<std::vector<double>> rows;
-    int column(const std::string &name) const {
-        for (std::size_t i = 0; i < header.size(); ++i)
-            if (header[i] == name) return static_cast<int>(i);
-        return -1;
-    }
-};
-
-// A numeric CSV with one header line; lines starting with '#' are comments.
-Table read_table(const std::string &file, const std::string &where) {
-    std::ifstream in(file);
-    if (!in)
-        throw Error(
-            fmt::format("{}: error: compare: cannot open the reference file '{}'", where, file));
-    Table t;
-    std::string line;
-    long number = 0;
-    while (std::getline(in, line)) {
-        ++number;
-        if (!line.empty() && line.back() == '\r') line.pop_back();
-        if (line.empty() || line[0] == '#') continue;
-        std::stringstream ss(line);
-        std::string cell;
-        std::vector<std::string> cells;
-        while (std::getline(ss, cell, ','))
-            cells.push_back(cell);
-        if (t.header.empty()) {
-            t.header = cells;
-            continue;
-        }
-        std::vector<double> row;
-        for (const std::string &c : cells) {
-            try {
-                std::size_t used = 0;
-                row.push_back(std::stod(c, &used));
-            } catch (const std::exception &) {
-                throw Error(
-                    fmt::format("{}:{}: error: compare: '{}' is not a number", file, number, c));
-            }
-        }
-        if (row.size() != t.header.size())
-            throw Error(fmt::format("{}:{}: error: compare: {} values for {} columns", file, number,
-                                    row.size(), t.header.size()));
-        t.rows.push_back(std::move(row));
-    }
-    if (t.rows.empty())
-        throw Error(fmt::format("{}: error: compare: the reference file has no data rows", file));
-    return t;
-}
-
-} // namespace
-
 std::string compare_point_rows(const PointCase &pc, const std::vector<PointRow> &all_rows) {
     const CompareSpec &cs = *pc.compare;
-    const Table ref = read_table(cs.file, cs.where);
+    const CsvTable ref = read_csv_table(cs.file, cs.where + ": compare");
     const int rx = ref.column(cs.ref_x);
     if (rx < 0)
         throw Error(fmt::format("{}: error: compare: the reference file {} has no column '{}'",

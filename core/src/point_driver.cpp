@@ -1,10 +1,12 @@
 #include <talus/point_driver.hpp>
 
+#include <talus/csv_table.hpp>
 #include <talus/sdk/voigt.hpp>
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <Eigen/QR>
+#include <Eigen/SVD>
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -168,6 +170,65 @@ ReplayCall read_replay(const yaml::Node &n) {
     return r;
 }
 
+// A laboratory file drives some components: each named column, times a
+// scale, is the absolute value of a strain or stress component at the
+// file's times (counted from its first row). One increment per row by
+// default, so every measured point is an increment end.
+void read_lab_file(const yaml::Node &lab, const std::string &case_file, Stage &st,
+                   std::array<bool, 6> &controlled) {
+    constexpr std::array<std::string_view, 4> keys = {"file", "time", "columns",
+                                                      "increments_per_row"};
+    lab.allow_keys(keys);
+    std::filesystem::path f(lab.require("file").as_string());
+    if (f.is_relative()) f = std::filesystem::path(case_file).parent_path() / f;
+    const CsvTable t = read_csv_table(f.lexically_normal().string(), lab.where());
+    const std::string time_col = lab.require("time").as_string();
+    const int tc = t.column(time_col);
+    if (tc < 0)
+        lab.require("time").fail(fmt::format("the file {} has no column '{}'", t.file, time_col));
+    if (t.rows.size() < 2) lab.fail(fmt::format("{} needs at least two rows", t.file));
+    const double t0 = t.rows.front()[static_cast<std::size_t>(tc)];
+    for (std::size_t r = 1; r < t.rows.size(); ++r)
+        if (!(t.rows[r][static_cast<std::size_t>(tc)] >
+              t.rows[r - 1][static_cast<std::size_t>(tc)]))
+            lab.require("time").fail(
+                fmt::format("times in {} must increase (data row {})", t.file, r + 1));
+    long per_row = 1;
+    if (const yaml::Node n = lab.get("increments_per_row"); n.defined()) {
+        per_row = n.as_integer();
+        if (per_row < 1 || per_row > 100000) n.fail("expected 1 <= increments_per_row <= 1e5");
+    }
+    st.duration = t.rows.back()[static_cast<std::size_t>(tc)] - t0;
+    st.increments = static_cast<long>(t.rows.size() - 1) * per_row;
+    const yaml::Node cols = lab.require("columns");
+    cols.expect_map();
+    for (const std::string &key : cols.keys()) {
+        const int c = component_index(cols, key);
+        const yaml::Node e = cols.get(key);
+        constexpr std::array<std::string_view, 3> ek = {"strain", "stress", "scale"};
+        e.allow_keys(ek);
+        const bool strain = e.get("strain").defined();
+        if (strain == e.get("stress").defined())
+            e.fail("give exactly one of strain: COLUMN, stress: COLUMN");
+        const std::string name = e.get(strain ? "strain" : "stress").as_string();
+        const int vc = t.column(name);
+        if (vc < 0) e.fail(fmt::format("the file {} has no column '{}'", t.file, name));
+        const double scale = e.get("scale").defined() ? e.get("scale").as_double() : 1.0;
+        std::vector<std::array<double, 2>> pts;
+        for (const auto &row : t.rows)
+            pts.push_back({row[static_cast<std::size_t>(tc)] - t0,
+                           scale * row[static_cast<std::size_t>(vc)]});
+        Condition &cond = st.conditions[static_cast<std::size_t>(c)];
+        cond = Condition{};
+        (strain ? cond.a : cond.b)[c] = 1.0;
+        cond.value.kind = ControlValue::Kind::table;
+        cond.value.table = PiecewiseLinear(std::move(pts));
+        cond.label = fmt::format("{}_{} = {} x column '{}' of {}", strain ? "eps" : "sig", key,
+                                 scale, name, t.file);
+        controlled[static_cast<std::size_t>(c)] = true;
+    }
+}
+
 void read_duration(const yaml::Node &s, Stage &st) {
     if (const yaml::Node d = s.get("duration"); d.defined()) {
         st.duration = d.as_double();
@@ -182,9 +243,9 @@ void read_duration(const yaml::Node &s, Stage &st) {
 
 // A stage written in the general form.
 Stage read_general_stage(const yaml::Node &s) {
-    constexpr std::array<std::string_view, 10> keys = {
-        "name", "duration", "increments", "control", "constraints",
-        "free", "until",    "rotation",   "replay",  "zero_strain"};
+    constexpr std::array<std::string_view, 12> keys = {
+        "name",  "duration", "increments", "control",     "constraints", "free",
+        "until", "rotation", "replay",     "zero_strain", "lab_file",    "deformation_gradient"};
     s.allow_keys(keys);
     Stage st;
     st.where = s.where();
@@ -197,8 +258,36 @@ Stage read_general_stage(const yaml::Node &s) {
                               "this key");
         return st;
     }
-    read_duration(s, st);
+    std::array<bool, 6> controlled{};
+    if (const yaml::Node lab = s.get("lab_file"); lab.defined()) {
+        if (s.get("duration").defined() || s.get("increments").defined())
+            lab.fail("a lab_file stage takes its duration and increments from the file: remove "
+                     "duration: and increments: (use increments_per_row)");
+        read_lab_file(lab, s.file(), st, controlled);
+    } else {
+        read_duration(s, st);
+    }
     if (const yaml::Node z = s.get("zero_strain"); z.defined()) st.zero_strain = z.as_bool();
+    if (const yaml::Node fg = s.get("deformation_gradient"); fg.defined()) {
+        // F(tau) component by component (a number or a [[tau, value], ...]
+        // table), the identity where not given; absolute, from the
+        // reference configuration.
+        constexpr std::array<std::string_view, 9> fk = {"xx", "xy", "xz", "yx", "yy",
+                                                        "yz", "zx", "zy", "zz"};
+        fg.allow_keys(fk);
+        std::array<PiecewiseLinear, 9> F;
+        for (std::size_t k = 0; k < 9; ++k) {
+            F[k] =
+                PiecewiseLinear(std::vector<std::array<double, 2>>{{0.0, k % 4 == 0 ? 1.0 : 0.0}});
+            if (const yaml::Node v = fg.get(fk[k]); v.defined()) F[k] = PiecewiseLinear::read(v);
+        }
+        st.deformation = F;
+        for (const char *k : {"control", "constraints", "free", "until", "rotation", "lab_file"})
+            if (s.get(k).defined())
+                s.get(k).fail("a deformation_gradient stage prescribes the whole motion: remove "
+                              "this key");
+        return st;
+    }
     if (const yaml::Node rot = s.get("rotation"); rot.defined()) {
         // A rigid rotation of the current configuration by `angle` degrees
         // about `axis` over the stage: F(tau) = R(angle tau / duration) F0.
@@ -217,11 +306,13 @@ Stage read_general_stage(const yaml::Node &s) {
                 s.get(k).fail("a rotation stage prescribes the whole deformation: remove this key");
         return st;
     }
-    std::array<bool, 6> controlled{};
     if (const yaml::Node ctrl = s.get("control"); ctrl.defined()) {
         ctrl.expect_map();
         for (const std::string &key : ctrl.keys()) {
             const int c = component_index(ctrl, key);
+            if (controlled[static_cast<std::size_t>(c)])
+                ctrl.get(key).fail(
+                    fmt::format("component {} is already driven by the lab file", key));
             st.conditions[static_cast<std::size_t>(c)] = read_component_control(ctrl.get(key), c);
             controlled[static_cast<std::size_t>(c)] = true;
         }
@@ -765,16 +856,37 @@ class Runner {
     // A rigid rotation increment: the strain-increment models get a zero
     // strain increment and the start stress rotated exactly by the
     // increment's rotation (the finite-strain ones compute from F).
-    void rotate(const Stage &st, const Mat3 &R, double t0, double dt, PointState &s) {
+    // One increment of a prescribed motion to F1. The increment dF = F1
+    // F_n^-1 = V R (polar decomposition, from its SVD) is a stretch V after
+    // a rotation R: a strain-increment model gets its start stress rotated
+    // exactly, R sigma R^T, and the strain increment ln V; a finite-strain
+    // model computes from F1.
+    void deform(const Stage &st, const Mat3 &F1, double t0, double dt, PointState &s) {
+        const Mat3 dF = F1 * s.F.inverse();
+        const Eigen::JacobiSVD<Mat3> svd(dF, Eigen::ComputeFullU | Eigen::ComputeFullV);
+        if (!(dF.determinant() > 0.0))
+            fail(st, t0,
+                 fmt::format("the prescribed F inverts the material (det dF = {:.6g})",
+                             dF.determinant()));
+        const Mat3 &U = svd.matrixU();
+        const Mat3 R = U * svd.matrixV().transpose();
+        const Mat3 lnV =
+            U * svd.singularValues().array().log().matrix().asDiagonal() * U.transpose();
+        const Vec6 de = sdk::matrix_to_stress(lnV); // tensor components
         PointState start = s;
-        const Mat3 F1 = R * s.F;
         if (!model().finite_strain())
             start.stress =
                 sdk::matrix_to_stress(R * sdk::stress_to_matrix(s.stress) * R.transpose());
-        const Call c = call(start, Vec6::Zero(), F1, t0, dt, false);
+        const Call c = call(start, de, F1, t0, dt, false);
+        if (c.result.status == TALUS_STATUS_CUT_STEP)
+            fail(st, t0,
+                 fmt::format("model '{}' asks for a smaller step; a prescribed-F stage "
+                             "does not cut its increments: give more increments ({})",
+                             model().id(), c.result.message));
         if (!c.result.ok())
             fail(st, t0, fmt::format("model '{}' failed: {}", model().id(), c.result.message));
         s.F = F1;
+        s.eps += de;
         s.stress = c.stress;
         s.state = c.state;
     }
@@ -824,11 +936,25 @@ class Runner {
                                        st.rotation->axis[2]);
             const double angle = st.rotation->angle;
             const double dt = st.duration / static_cast<double>(st.increments);
+            const Mat3 step = rotation(axis, angle / static_cast<double>(st.increments));
             for (long n = 0; n < st.increments; ++n) {
-                rotate(st, rotation(axis, angle / static_cast<double>(st.increments)),
-                       t + dt * static_cast<double>(n), dt, s);
+                deform(st, step * s.F, t + dt * static_cast<double>(n), dt, s);
                 if ((n + 1) % pc_.output_every == 0 || n + 1 == st.increments)
                     record(t + dt * static_cast<double>(n + 1), number, s);
+            }
+            return t + st.duration;
+        }
+        if (st.deformation) {
+            const double dt = st.duration / static_cast<double>(st.increments);
+            for (long n = 0; n < st.increments; ++n) {
+                const double tau =
+                    n + 1 == st.increments ? st.duration : dt * static_cast<double>(n + 1);
+                Mat3 F1;
+                for (int k = 0; k < 9; ++k)
+                    F1(k / 3, k % 3) = (*st.deformation)[static_cast<std::size_t>(k)](tau);
+                deform(st, F1, t + dt * static_cast<double>(n), dt, s);
+                if ((n + 1) % pc_.output_every == 0 || n + 1 == st.increments)
+                    record(t + tau, number, s);
             }
             return t + st.duration;
         }
@@ -1007,6 +1133,10 @@ void print_stages(std::ostream &out, const PointCase &pc) {
                            st.until ? fmt::format(", until {}", st.until->text) : "");
         if (st.replay) {
             out << "  one plugin call with the recorded inputs\n";
+            continue;
+        }
+        if (st.deformation) {
+            out << "  prescribed deformation gradient F(tau)\n";
             continue;
         }
         if (st.rotation) {

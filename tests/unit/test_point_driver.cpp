@@ -490,3 +490,79 @@ TEST(PointDriver, RigidRotationKeepsTheInvariantsForBothModels) {
         EXPECT_NEAR(after.determinant(), before.determinant(), 1e-9 * std::pow(scale, 3));
     }
 }
+
+// A laboratory file drives a stage: the measured axial strain (percent,
+// compression positive) and cell pressure (kPa) of a drained triaxial test
+// at their times. At every row the lateral stresses equal the cell pressure
+// read from the file and the axial strain the measured one (to the Newton
+// tolerance, 1e-10 of the stress); where the cell pressure is constant the
+// result equals the drained triaxial preset's (the same conditions).
+TEST(PointDriver, LabFileDrivesTheComponentsItNames) {
+    NoEnv e;
+    const std::filesystem::path dir = std::filesystem::temp_directory_path() / "talus_lab_test";
+    std::filesystem::create_directories(dir);
+    {
+        std::ofstream f(dir / "lab.csv");
+        f << "# a drained triaxial record\nt_s, axial_pct, cell_kpa\n";
+        for (int k = 0; k <= 10; ++k)
+            f << fmt::format("{}, {}, {}\n", 2.0 * k, 0.3 * k,
+                             k <= 5 ? 50.0 : 50.0 + 4.0 * (k - 5));
+    }
+    const std::string mat = "talus: 1\n" + mc_material(30, 0, 5, 1e7, 0.3) +
+                            "initial_stress: [-5e4, -5e4, -5e4, 0, 0, 0]\nstages:\n";
+    talus::PluginRegistry reg;
+    const auto root = talus::yaml::load_string(
+        mat + "  - name: lab\n    lab_file:\n      file: lab.csv\n      time: t_s\n"
+              "      columns:\n        zz: {strain: axial_pct, scale: -0.01}\n"
+              "        xx: {stress: cell_kpa, scale: -1000}\n"
+              "        yy: {stress: cell_kpa, scale: -1000}\n",
+        (dir / "case.yaml").string());
+    const talus::PointCase pc = talus::read_point_case(root, reg);
+    ASSERT_EQ(pc.stages[0].increments, 10);
+    EXPECT_EQ(pc.stages[0].duration, 20.0);
+    const auto out = talus::run_point_case(pc);
+    ASSERT_EQ(out.size(), 11u);
+    for (int k = 0; k <= 10; ++k) {
+        const auto &r = out[static_cast<std::size_t>(k)];
+        const double cell = (k <= 5 ? 50.0 : 50.0 + 4.0 * (k - 5)) * 1000.0;
+        EXPECT_NEAR(r.stress[0], -cell, 1e-10 * 3e5) << "row " << k;
+        EXPECT_NEAR(r.stress[1], -cell, 1e-10 * 3e5) << "row " << k;
+        EXPECT_NEAR(r.strain[2], -0.003 * k, 1e-12) << "row " << k;
+    }
+    const auto preset = talus::read_point_case(
+        talus::yaml::load_string(mat + "  - {preset: triaxial_drained, axial_strain: 0.015, "
+                                       "increments: 5}\n",
+                                 "p.yaml"),
+        reg);
+    const auto ref = talus::run_point_case(preset);
+    for (std::size_t k = 0; k <= 5; ++k)
+        EXPECT_NEAR(q_of(out[k], pc, "q_a"), q_of(ref[k], preset, "q_a"), 1e-9 * 3e5) << k;
+    std::filesystem::remove_all(dir);
+}
+
+// A prescribed deformation gradient: simple shear F = I + gamma e_x e_y of
+// the Neo-Hookean model against its closed form (b = F F^T, J = 1: sigma =
+// mu (b - I), so sigma_xx = mu gamma^2, sigma_xy = mu gamma, the rest 0),
+// through 20 increments of the F table (the model computes from F_end, so
+// the path does not matter). 1e-12 of mu: a few roundings of b.
+TEST(PointDriver, PrescribedDeformationGradientGivesTheClosedFormSimpleShear) {
+    NoEnv e;
+    talus::PluginRegistry reg;
+    const auto root = talus::yaml::load_string(
+        "talus: 1\nmaterial: {model: neo_hookean, density: 1000, youngs_modulus: 2.6e6, "
+        "poisson_ratio: 0.3}\nstages:\n"
+        "  - {increments: 20, deformation_gradient: {xy: [[0, 0], [1, 0.8]]}}\n",
+        "shear.yaml");
+    const talus::PointCase pc = talus::read_point_case(root, reg);
+    const auto out = talus::run_point_case(pc);
+    ASSERT_EQ(out.size(), 21u);
+    const double mu = 2.6e6 / 2.6;
+    for (std::size_t k = 0; k < out.size(); ++k) {
+        const double g = 0.8 * static_cast<double>(k) / 20.0;
+        const auto &s = out[k].stress;
+        EXPECT_NEAR(s[0], mu * g * g, 1e-12 * mu) << k;
+        EXPECT_NEAR(s[3], mu * g, 1e-12 * mu) << k;
+        for (int c : {1, 2, 4, 5})
+            EXPECT_NEAR(s[c], 0.0, 1e-12 * mu) << k << " component " << c;
+    }
+}

@@ -97,6 +97,9 @@ struct Stage {
     std::optional<ExitCondition> until;
     std::optional<RigidRotation> rotation; // replaces the conditions
     std::optional<ReplayCall> replay;      // replaces the conditions
+    // A prescribed deformation gradient F(tau), row-major xx xy xz yx ... zz,
+    // relative to the reference configuration; replaces the conditions.
+    std::optional<std::array<PiecewiseLinear, 9>> deformation;
     bool zero_strain = false; // strains measured from this stage's start (as a lab does)
     std::string where;        // file:line:col of the stage, for messages
 };
