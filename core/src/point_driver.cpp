@@ -24,12 +24,10 @@ using RowMat3 = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
 
 namespace {
 
-constexpr std::array<std::string_view, 6> kComponents = {"xx", "yy", "zz", "xy", "yz", "xz"};
-
 int component_index(const yaml::Node &key_node, const std::string &name) {
     for (std::size_t c = 0; c < 6; ++c)
-        if (name == kComponents[c]) return static_cast<int>(c);
-    const std::string near = yaml::closest_match(name, kComponents);
+        if (name == kVoigtNames[c]) return static_cast<int>(c);
+    const std::string near = yaml::closest_match(name, kVoigtNames);
     key_node.fail(fmt::format("unknown component '{}'; expected one of xx, yy, zz, xy, yz, xz{}",
                               name,
                               near.empty() ? "" : fmt::format(" (did you mean '{}'?)", near)));
@@ -71,7 +69,7 @@ Condition read_component_control(const yaml::Node &entry, int c) {
     (strain ? cond.a : cond.b)[c] = 1.0;
     cond.value = read_value(entry.get(k), kind);
     cond.label =
-        fmt::format("{}_{}", strain ? "eps" : "sig", kComponents[static_cast<std::size_t>(c)]);
+        fmt::format("{}_{}", strain ? "eps" : "sig", kVoigtNames[static_cast<std::size_t>(c)]);
     return cond;
 }
 
@@ -324,7 +322,7 @@ Stage read_general_stage(const yaml::Node &s) {
             const int c = component_index(fr.at(i), fr.at(i).as_string());
             if (controlled[static_cast<std::size_t>(c)])
                 fr.at(i).fail(fmt::format("component {} is both under control: and free",
-                                          kComponents[static_cast<std::size_t>(c)]));
+                                          kVoigtNames[static_cast<std::size_t>(c)]));
             if (std::find(free.begin(), free.end(), c) != free.end()) fr.at(i).fail("listed twice");
             free.push_back(c);
         }
@@ -344,7 +342,7 @@ Stage read_general_stage(const yaml::Node &s) {
         if (!controlled[c] &&
             std::find(free.begin(), free.end(), static_cast<int>(c)) == free.end()) {
             st.conditions[c].b[static_cast<int>(c)] = 1.0;
-            st.conditions[c].label = fmt::format("sig_{}", kComponents[c]);
+            st.conditions[c].label = fmt::format("sig_{}", kVoigtNames[c]);
         }
     for (std::size_t i = 0; i < free.size(); ++i)
         st.conditions[static_cast<std::size_t>(free[i])] = extra[i];
@@ -472,13 +470,13 @@ PointCase read_point_case(const yaml::Node &root, PluginRegistry &registry) {
         if (st.increments < 1 || st.increments > 100000000)
             inc.fail(fmt::format("expected 1 <= increments <= 1e8, got {}", st.increments));
         const yaml::Node strain = root.require("strain");
-        strain.allow_keys(kComponents);
+        strain.allow_keys(kVoigtNames);
         for (std::size_t c = 0; c < 6; ++c) {
             Condition &cond = st.conditions[c];
             cond.a[static_cast<int>(c)] = 1.0;
             cond.value.kind = ControlValue::Kind::table;
-            cond.label = fmt::format("eps_{}", kComponents[c]);
-            if (const yaml::Node f = strain.get(kComponents[c]); f.raw().IsDefined())
+            cond.label = fmt::format("eps_{}", kVoigtNames[c]);
+            if (const yaml::Node f = strain.get(kVoigtNames[c]); f.raw().IsDefined())
                 cond.value.table = PiecewiseLinear::read(f);
         }
         pc.stages.push_back(std::move(st));
@@ -559,8 +557,8 @@ double shear_strain_invariant(const Vec6 &e) {
 std::optional<double> point_quantity(const PointRow &r, const Model &model, int axis,
                                      const std::string &name) {
     for (std::size_t c = 0; c < 6; ++c) {
-        if (name == fmt::format("eps_{}", kComponents[c])) return r.strain[static_cast<int>(c)];
-        if (name == fmt::format("sig_{}", kComponents[c])) return r.stress[static_cast<int>(c)];
+        if (name == fmt::format("eps_{}", kVoigtNames[c])) return r.strain[static_cast<int>(c)];
+        if (name == fmt::format("sig_{}", kVoigtNames[c])) return r.stress[static_cast<int>(c)];
     }
     const int l1 = (axis + 1) % 3, l2 = (axis + 2) % 3;
     if (name == "time") return r.time;
@@ -1035,9 +1033,9 @@ std::vector<PointRow> run_point_case(const PointCase &pc) {
 void write_point_csv(std::ostream &out, const Model &model, int axis,
                      const std::vector<PointRow> &rows) {
     out << "time,stage";
-    for (auto c : kComponents)
+    for (auto c : kVoigtNames)
         out << ",eps_" << c;
-    for (auto c : kComponents)
+    for (auto c : kVoigtNames)
         out << ",sig_" << c;
     out << ",p,q,eps_v,eps_q,eps_a,sig_a,sig_r,q_a";
     for (const StateInfo &s : model.state()) {

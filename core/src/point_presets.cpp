@@ -16,14 +16,12 @@ namespace talus {
 
 namespace {
 
-constexpr std::array<std::string_view, 6> kComponents = {"xx", "yy", "zz", "xy", "yz", "xz"};
-
 Condition strain_change(int c, double amount) {
     Condition k;
     k.a[c] = 1.0;
     k.value.kind = ControlValue::Kind::change;
     k.value.amount = amount;
-    k.label = fmt::format("eps_{}", kComponents[static_cast<std::size_t>(c)]);
+    k.label = fmt::format("eps_{}", kVoigtNames[static_cast<std::size_t>(c)]);
     return k;
 }
 Condition stress_change(int c, double amount) {
@@ -31,7 +29,7 @@ Condition stress_change(int c, double amount) {
     k.b[c] = 1.0;
     k.value.kind = ControlValue::Kind::change;
     k.value.amount = amount;
-    k.label = fmt::format("sig_{}", kComponents[static_cast<std::size_t>(c)]);
+    k.label = fmt::format("sig_{}", kVoigtNames[static_cast<std::size_t>(c)]);
     return k;
 }
 Condition stress_target(int c, double value) {
@@ -53,8 +51,8 @@ Condition laterals_equal(int l1, int l2) {
     Condition k;
     k.b[l1] = 1.0;
     k.b[l2] = -1.0;
-    k.label = fmt::format("sig_{} - sig_{}", kComponents[static_cast<std::size_t>(l1)],
-                          kComponents[static_cast<std::size_t>(l2)]);
+    k.label = fmt::format("sig_{} - sig_{}", kVoigtNames[static_cast<std::size_t>(l1)],
+                          kVoigtNames[static_cast<std::size_t>(l2)]);
     return k;
 }
 // sig_xx + sig_yy + sig_zz held: constant mean stress.
@@ -72,8 +70,8 @@ Condition deviator_change(int a, int l1, int l2, double amount) {
     k.b[l2] = 0.5;
     k.value.amount = amount;
     k.label = fmt::format(
-        "q_a = -sig_{} + (sig_{} + sig_{})/2", kComponents[static_cast<std::size_t>(a)],
-        kComponents[static_cast<std::size_t>(l1)], kComponents[static_cast<std::size_t>(l2)]);
+        "q_a = -sig_{} + (sig_{} + sig_{})/2", kVoigtNames[static_cast<std::size_t>(a)],
+        kVoigtNames[static_cast<std::size_t>(l1)], kVoigtNames[static_cast<std::size_t>(l2)]);
     return k;
 }
 

@@ -203,7 +203,7 @@ namespace {
 
 bool is_own_file(const fs::path &p) {
     const std::string name = p.filename().string();
-    for (const char *f : {"diagnostics.csv", "probes.csv", "particles.pvd"})
+    for (const char *f : {"diagnostics.csv", "probes.csv", "particles.pvd", "failed_call.yaml"})
         if (name == f) return true;
     return (name.rfind("particles_", 0) == 0 || name.rfind("failure_", 0) == 0) &&
            p.extension() == ".vtu";
@@ -360,8 +360,6 @@ class RunOutput {
     int outputs_ = 0;
 };
 
-// The crash handler's last action (crash_report.hpp): the state at the
-// crash, best effort (the heap may be what the plugin broke).
 // When a plugin failed at one particle, the driver case that replays that
 // call (`talus point`), for the message.
 std::string write_replay_case(const Simulation &sim, const fs::path &dir) noexcept {
@@ -377,6 +375,8 @@ std::string write_replay_case(const Simulation &sim, const fs::path &dir) noexce
     }
 }
 
+// The crash handler's last action (crash_report.hpp): the state at the
+// crash, best effort (the heap may be what the plugin broke).
 void write_state_after_crash(void *context) {
     auto *out = static_cast<RunOutput *>(context);
     const std::string where = out->write_failure();
@@ -464,7 +464,7 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
         try {
             sim.step(end - sim.time());
         } catch (const Error &e) {
-            throw Error(e.what() + out.write_failure() + write_replay_case(sim, opt.output_dir));
+            throw Error(e.what() + out.write_failure() + write_replay_case(sim, dir));
         }
         particle_steps += static_cast<long>(sim.particle_count());
         for (; warnings_shown < sim.warnings().size(); ++warnings_shown)

@@ -32,6 +32,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 #include <string>
 
@@ -237,8 +238,12 @@ struct MohrCoulomb {
         }
         // Plastic. If the start stress itself lies outside the surface (a
         // user's initial stress), project it first, without plastic strain.
-        const Spectral s0(talus::sdk::stress_to_matrix(in.stress));
-        if (!talus_mc::admissible(s0.values, st_n, talus_mc::stress_tolerance(s0.values, st_n))) {
+        // Its eigenvalues alone (closed form, no vectors) decide; the full
+        // decomposition is needed only in that rare case. (A start stress on
+        // the surface that rounding puts just outside projects onto itself.)
+        const V3 p0 = start_principal(in.stress);
+        if (!talus_mc::admissible(p0, st_n, talus_mc::stress_tolerance(p0, st_n))) {
+            const Spectral s0(talus::sdk::stress_to_matrix(in.stress));
             const Return r0 = talus_mc::return_map(s0.values, st_n, el_);
             trial = talus::sdk::matrix_to_stress(s0.compose(r0.stress)) + De_ * in.strain_increment;
             sp = Spectral(talus::sdk::stress_to_matrix(trial));
@@ -283,6 +288,13 @@ struct MohrCoulomb {
         s.tension_active = !(s.sin_phi > 0.0 && tension_ * s.sin_phi > s.cohesion * s.cos_phi);
         s.tension = tension_;
         return s;
+    }
+
+    // Ordered principal values of a stress, by the closed-form solver.
+    static V3 start_principal(const Vec6 &s) {
+        Eigen::SelfAdjointEigenSolver<Mat3> es;
+        es.computeDirect(talus::sdk::stress_to_matrix(s), Eigen::EigenvaluesOnly);
+        return V3(es.eigenvalues()[2], es.eigenvalues()[1], es.eigenvalues()[0]);
     }
 
     // Within the validity tolerance of the shear plane or the cut-off.

@@ -410,10 +410,14 @@ TEST(PointDriver, CyclicSimpleShearPresetCyclesWithinTheStrength) {
         s << r.stress[0], r.stress[3], r.stress[5], r.stress[3], r.stress[1], r.stress[4],
             r.stress[5], r.stress[4], r.stress[2];
         const Eigen::Vector3d l = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(s).eigenvalues();
+        // 1e-9 of the stress: the model's surface test allows 1e-10 of it,
+        // and this eigen solve adds a few ulps.
         EXPECT_LE((l[2] - l[0]) + (l[2] + l[0]) * 0.5, 1e-9 * 1e5);
     }
-    EXPECT_NEAR(gmax, 0.01, 1e-12);
-    EXPECT_NEAR(gmin, -0.01, 1e-12);
+    // The shear strain is a strain condition: met to 1e-10 |sigma| / M
+    // (~1e-12 in gamma here) like the volume above.
+    EXPECT_NEAR(gmax, 0.01, 5e-12);
+    EXPECT_NEAR(gmin, -0.01, 5e-12);
     EXPECT_GT(q_of(out.back(), pc, "plastic_deviatoric_strain"), 0.0);
 }
 
@@ -527,7 +531,8 @@ TEST(PointDriver, LabFileDrivesTheComponentsItNames) {
         const double cell = (k <= 5 ? 50.0 : 50.0 + 4.0 * (k - 5)) * 1000.0;
         EXPECT_NEAR(r.stress[0], -cell, 1e-10 * 3e5) << "row " << k;
         EXPECT_NEAR(r.stress[1], -cell, 1e-10 * 3e5) << "row " << k;
-        EXPECT_NEAR(r.strain[2], -0.003 * k, 1e-12) << "row " << k;
+        // A strain condition: met to 1e-10 |sigma| / M, ~2e-12 here.
+        EXPECT_NEAR(r.strain[2], -0.003 * k, 5e-12) << "row " << k;
     }
     const auto preset = talus::read_point_case(
         talus::yaml::load_string(mat + "  - {preset: triaxial_drained, axial_strain: 0.015, "
@@ -536,6 +541,7 @@ TEST(PointDriver, LabFileDrivesTheComponentsItNames) {
         reg);
     const auto ref = talus::run_point_case(preset);
     for (std::size_t k = 0; k <= 5; ++k)
+        // Both runs converge to 1e-10 of the stress (up to 3e5 Pa here).
         EXPECT_NEAR(q_of(out[k], pc, "q_a"), q_of(ref[k], preset, "q_a"), 1e-9 * 3e5) << k;
     std::filesystem::remove_all(dir);
 }

@@ -36,11 +36,15 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace talus {
 
 using PointVec6 = Eigen::Matrix<double, 6, 1>;
+
+// Names of the symmetric tensor components in Voigt order.
+inline constexpr std::array<std::string_view, 6> kVoigtNames = {"xx", "yy", "zz", "xy", "yz", "xz"};
 
 // How a condition's right-hand side evolves over its stage.
 struct ControlValue {
