@@ -34,7 +34,7 @@
 #pragma once
 
 #include <Eigen/Core>
-#include <Eigen/LU>
+#include <Eigen/LU> // Matrix3d::inverse and determinant (closed form for 3 x 3)
 
 #include <algorithm>
 #include <array>
@@ -209,14 +209,36 @@ inline bool solve_candidate(const Candidate &c, const V3 &trial, const Planes &p
         for (int j = 0; j < n; ++j)
             M(i, j) = pl.a[pi].dot(DB.col(j));
     }
-    const Eigen::FullPivLU<Eigen::Matrix3d> lu(M);
-    if (!lu.isInvertible()) return false;
-    dl = lu.solve(rhs);
+    // The n x n system in closed form (cofactors): at most 3 x 3, solved
+    // for every candidate tried at every plastic point, where a pivoting LU
+    // costs several times the rest of the return. Singular when the
+    // determinant is below 1e-12 of the scale M_max^n: the apex triples that
+    // do not span 3D give exactly zero, every other candidate is far above
+    // (the products a D b are of the order of the elastic moduli).
+    Eigen::Matrix3d Minv = Eigen::Matrix3d::Zero();
+    const double scale = M.topLeftCorner(n, n).cwiseAbs().maxCoeff();
+    if (n == 1) {
+        if (!(std::abs(M(0, 0)) > 0.0)) return false;
+        Minv(0, 0) = 1.0 / M(0, 0);
+    } else if (n == 2) {
+        const double det = M(0, 0) * M(1, 1) - M(0, 1) * M(1, 0);
+        if (!(std::abs(det) > 1e-12 * scale * scale)) return false;
+        Minv(0, 0) = M(1, 1) / det;
+        Minv(0, 1) = -M(0, 1) / det;
+        Minv(1, 0) = -M(1, 0) / det;
+        Minv(1, 1) = M(0, 0) / det;
+    } else {
+        const double det = M.determinant();
+        if (!(std::abs(det) > 1e-12 * scale * scale * scale)) return false;
+        Minv = M.inverse();
+    }
+    dl = Minv * rhs;
     for (int j = n; j < 3; ++j)
         dl[j] = 0.0;
     out.stress = trial - DB * dl;
-    const Eigen::Matrix3d Minv = lu.inverse();
-    out.P = M3::Identity() - DB.leftCols(n) * Minv.topLeftCorner(n, n) * A.topRows(n);
+    // Rows of A and columns of DB beyond n are zero, so the full 3 x 3
+    // products are the n-sized ones.
+    out.P = M3::Identity() - DB * Minv * A;
     out.mode = c.mode;
     return true;
 }
