@@ -9,6 +9,7 @@
 #include <talus/plugin_loader.hpp>
 #include <talus/point_driver.hpp>
 
+#include "particle_plot.hpp"
 #include "point_plot.hpp"
 #include <talus/run.hpp>
 #include <talus/scenario.hpp>
@@ -144,6 +145,17 @@ int main(int argc, char **argv) {
         ->check(CLI::PositiveNumber);
     run->add_option("--threads", threads, "Number of threads (default: OpenMP's, all cores)")
         ->check(CLI::PositiveNumber);
+    std::string run_plot, run_plot_field = "displacement";
+    run->add_option("--plot", run_plot,
+                    "After the last step, draw the particles where they ended, coloured by "
+                    "--plot-field, with matplotlib (also writes final_particles.csv in the "
+                    "output folder)")
+        ->type_name("FILE.png");
+    run->add_option("--plot-field", run_plot_field,
+                    "Field for --plot: a scalar state variable of the materials (e.g. "
+                    "plastic_deviatoric_strain) or displacement, speed, p, q, J (default "
+                    "displacement)")
+        ->type_name("NAME");
     auto *validate = app.add_subcommand("validate", "Check a scenario file without running it");
     std::string validate_file;
     validate->add_option("scenario", validate_file, "Scenario file (YAML)")
@@ -266,12 +278,21 @@ int main(int argc, char **argv) {
             ro.progress_tty = isatty(2) != 0;
             ro.progress_interval = progress_every;
             ro.solver.threads = threads;
+            if (!run_plot.empty()) ro.final_field = run_plot_field;
             const talus::RunSummary rs = talus::run_scenario(sc, ro, std::cerr);
             std::cerr << fmt::format(
                 "talus: {} steps to t = {:.6g} s, {} particles, {:.1f} s wall, {:.3g} "
                 "particle-steps/s; {} output(s) in {}\n",
                 rs.steps, rs.time, rs.particles, rs.seconds, rs.particle_steps_per_second,
                 rs.outputs, rs.output_dir.string());
+            if (!run_plot.empty()) {
+                talus::plot_final_particles(
+                    rs.output_dir / "final_particles.csv", run_plot,
+                    fmt::format("{}: {} at t = {:.4g} s",
+                                std::filesystem::path(scenario_file).filename().string(),
+                                run_plot_field, rs.time));
+                std::cerr << fmt::format("talus: drew {}\n", run_plot);
+            }
             return 0;
         }
         if (validate->parsed()) {

@@ -1,12 +1,6 @@
 #include "point_plot.hpp"
 
-#include <talus/error.hpp>
-
-#include <fmt/format.h>
-
-#include <cstdio>
-#include <cstdlib>
-#include <sys/wait.h>
+#include "matplotlib.hpp"
 
 namespace talus {
 
@@ -84,39 +78,11 @@ fig.tight_layout()
 fig.savefig(png, dpi=110)
 )PY";
 
-std::string quote(const std::string &s) {
-    std::string out = "'";
-    for (char c : s)
-        out += c == '\'' ? std::string("'\\''") : std::string(1, c);
-    return out + "'";
-}
-
 } // namespace
 
 void plot_point_csv(const std::filesystem::path &csv, const std::filesystem::path &png,
                     const std::string &title) {
-    // Debian's python3-matplotlib serves /usr/bin/python3; an activated
-    // virtual environment earlier in PATH may lack it. TALUS_PYTHON
-    // overrides both.
-    std::string python = "python3";
-    if (const char *env = std::getenv("TALUS_PYTHON"); env && *env)
-        python = env;
-    else if (std::filesystem::exists("/usr/bin/python3"))
-        python = "/usr/bin/python3";
-    const std::string cmd = fmt::format("{} - {} {} {} 2>&1", quote(python), quote(csv.string()),
-                                        quote(png.string()), quote(title));
-    FILE *pipe = popen(cmd.c_str(), "w");
-    if (!pipe) throw Error("--plot: cannot start python3");
-    const std::string script = kScript;
-    const bool written = std::fwrite(script.data(), 1, script.size(), pipe) == script.size();
-    const int status = pclose(pipe);
-    if (!written || status == -1 || !WIFEXITED(status) || WEXITSTATUS(status) != 0)
-        throw Error(fmt::format("--plot: python3 with matplotlib failed to draw {} (exit status "
-                                "{}); it needs Debian's python3-matplotlib (or set TALUS_PYTHON "
-                                "to a python3 that has matplotlib)",
-                                png.string(), WIFEXITED(status) ? WEXITSTATUS(status) : -1));
-    if (!std::filesystem::exists(png))
-        throw Error(fmt::format("--plot: {} was not written", png.string()));
+    draw_with_matplotlib(kScript, {csv.string(), png.string(), title}, png, "--plot");
 }
 
 } // namespace talus

@@ -3,10 +3,13 @@
 #include <talus/crash_report.hpp>
 #include <talus/output_file.hpp>
 #include <talus/point_driver.hpp>
+#include <talus/sdk/voigt.hpp>
 #include <talus/vtk_output.hpp>
+#include <talus/yaml_input.hpp>
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -203,7 +206,8 @@ namespace {
 
 bool is_own_file(const fs::path &p) {
     const std::string name = p.filename().string();
-    for (const char *f : {"diagnostics.csv", "probes.csv", "particles.pvd", "failed_call.yaml"})
+    for (const char *f : {"diagnostics.csv", "probes.csv", "particles.pvd", "failed_call.yaml",
+                          "final_particles.csv"})
         if (name == f) return true;
     return (name.rfind("particles_", 0) == 0 || name.rfind("failure_", 0) == 0) &&
            p.extension() == ".vtu";
@@ -390,8 +394,92 @@ struct ClearLastAction {
 
 } // namespace
 
+namespace {
+
+// Where a state variable of that name sits in each material's state vector
+// (-1: the material lacks it). Throws when no material has it as a scalar.
+std::vector<long> final_field_offsets(const Scenario &sc, const std::string &field) {
+    std::vector<long> where(sc.materials.size(), -1);
+    std::vector<std::string> known(std::begin(kFinalFieldBuiltins), std::end(kFinalFieldBuiltins));
+    bool found = false;
+    for (std::size_t m = 0; m < sc.materials.size(); ++m)
+        for (const auto &v : sc.materials[m].spec.model->state()) {
+            if (std::find(known.begin(), known.end(), v.name) == known.end())
+                known.push_back(v.name);
+            if (v.name != field) continue;
+            if (v.size != 1)
+                throw Error(fmt::format("--plot-field {}: a state variable of {} values; only "
+                                        "scalar ones can be drawn",
+                                        field, v.size));
+            where[m] = static_cast<long>(v.offset);
+            found = true;
+        }
+    if (!found) {
+        const std::string guess = yaml::closest_match(field, known);
+        std::string list;
+        for (const std::string &k : known)
+            list += (list.empty() ? "" : ", ") + k;
+        throw Error(fmt::format("--plot-field {}: no such field{}; this scenario has: {}", field,
+                                guess.empty() ? "" : fmt::format(" (did you mean '{}'?)", guess),
+                                list));
+    }
+    return where;
+}
+
+bool is_builtin_field(const std::string &field) {
+    for (const char *b : kFinalFieldBuiltins)
+        if (field == b) return true;
+    return false;
+}
+
+// final_particles.csv: one row per particle; NaN where a particle's
+// material lacks the state variable.
+void write_final_particles(const fs::path &file, const Simulation &sim, const std::string &field,
+                           const std::vector<long> &offsets) {
+    const int D = sim.scenario().dim;
+    std::string text = "id,group,x,y";
+    if (D == 3) text += ",z";
+    text += "," + field + "\n";
+    for (const ParticleSet &s : sim.sets())
+        for (std::size_t p = 0; p < s.n; ++p) {
+            double value = std::numeric_limits<double>::quiet_NaN();
+            const sdk::Vec6 v6 = Eigen::Map<const sdk::Vec6>(&s.stress[6 * p]);
+            double sq = 0.0, su = 0.0;
+            for (int d = 0; d < D; ++d) {
+                const std::size_t dd = static_cast<std::size_t>(d);
+                sq += s.v[dd][p] * s.v[dd][p];
+                su += (s.x[dd][p] - s.x0[dd][p]) * (s.x[dd][p] - s.x0[dd][p]);
+            }
+            if (field == "displacement")
+                value = std::sqrt(su);
+            else if (field == "speed")
+                value = std::sqrt(sq);
+            else if (field == "p")
+                value = sdk::mean_pressure(v6);
+            else if (field == "q")
+                value = sdk::von_mises(v6);
+            else if (field == "J")
+                value = s.J[p];
+            else if (offsets[s.material] >= 0)
+                value = s.state[s.state_size * p + static_cast<std::size_t>(offsets[s.material])];
+            text += fmt::format("{},{}", s.id[p], s.group[p]);
+            for (int d = 0; d < D; ++d)
+                text += fmt::format(",{:.9g}", s.x[static_cast<std::size_t>(d)][p]);
+            text += fmt::format(",{:.9g}\n", value);
+        }
+    write_file_atomically(file, text);
+}
+
+} // namespace
+
 RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) {
     const fs::path dir = opt.output_dir.empty() ? default_output_dir(sc.file) : opt.output_dir;
+    // A misspelt field is refused before any work, not after the run.
+    std::vector<long> final_offsets;
+    if (!opt.final_field.empty() && !is_builtin_field(opt.final_field))
+        final_offsets = final_field_offsets(sc, opt.final_field);
+    else
+        final_offsets.assign(sc.materials.size(), -1);
     // Refuse before any work: a previous run's files are never overwritten
     // silently.
     std::error_code ec;
@@ -496,6 +584,8 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
         }
     }
     if (opt.progress && opt.progress_tty) std::fprintf(stderr, "\n");
+    if (!opt.final_field.empty())
+        write_final_particles(dir / "final_particles.csv", sim, opt.final_field, final_offsets);
     RunSummary rs;
     rs.steps = sim.steps();
     rs.time = sim.time();

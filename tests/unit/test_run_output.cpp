@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <sstream>
 
@@ -158,4 +159,67 @@ TEST(RunOutput, AFailedPluginCallIsReplayedByTheDriver) {
             << replay_error;
         fs::remove_all(dir);
     }
+}
+
+// final_particles.csv (`talus run --plot`): one row per particle with its
+// final position and the field. A block in free fall (no face reached) has
+// moved by the same closed-form distance everywhere.
+TEST(RunOutput, FinalParticlesHoldEveryParticleAndTheField) {
+    const std::string yaml =
+        "talus: 1\ndimension: 2\ngrid: {origin: [0, 0], size: [1, 1], cell: 0.05}\n"
+        "materials:\n  m: {model: mohr_coulomb, density: 2000, youngs_modulus: 1.0e7, "
+        "poisson_ratio: 0.3, friction_angle: 30}\n"
+        "groups:\n  b: {material: m, shape: {box: {min: [0.3, 0.6], max: [0.6, 0.8]}}}\n"
+        "gravity: [0, -9.81]\ntime: {end: 0.1}\noutput: {vtk: false}\n";
+    const fs::path dir = fs::temp_directory_path() / "talus_final_particles_test";
+    auto s = talus::test::sim_from_text(yaml);
+    talus::RunOptions opt;
+    opt.output_dir = dir;
+    opt.force = true;
+    opt.final_field = "displacement";
+    std::ostringstream log;
+    const talus::RunSummary rs = talus::run_scenario(s->scenario, opt, log);
+    const auto rows = talus::test::read_numeric_csv(dir / "final_particles.csv");
+    ASSERT_EQ(rows.size(), rs.particles);
+    // 6 x 4 cells, 2 x 2 particles each: every id once.
+    std::vector<double> ids;
+    for (const auto &r : rows) {
+        ASSERT_EQ(r.size(), 5u); // id, group, x, y, displacement
+        ids.push_back(r[0]);
+    }
+    std::sort(ids.begin(), ids.end());
+    EXPECT_EQ(std::adjacent_find(ids.begin(), ids.end()), ids.end());
+    // Free fall: g t^2 / 2 plus the first-order term of the explicit update
+    // (v after the step moves the particle), at most g t dt / 2; dt is at
+    // most the CFL step h / c with c = 82 m/s here, so 0.3 * 0.05 / 82.
+    const double g = 9.81, t = 0.1, dt_max = 0.3 * 0.05 / 80.0;
+    for (const auto &r : rows) {
+        EXPECT_NEAR(r[4], 0.5 * g * t * t, 0.5 * g * t * dt_max + 1e-12);
+        EXPECT_GT(r[3], 0.6 - 0.5 * g * t * t - 0.01); // below where it started, by that much
+    }
+}
+
+// A misspelt field is refused before the run starts: nothing is written.
+TEST(RunOutput, AMisspeltPlotFieldIsRefusedBeforeTheRun) {
+    const std::string yaml =
+        "talus: 1\ndimension: 2\ngrid: {origin: [0, 0], size: [1, 1], cell: 0.05}\n"
+        "materials:\n  m: {model: mohr_coulomb, density: 2000, youngs_modulus: 1.0e7, "
+        "poisson_ratio: 0.3, friction_angle: 30}\n"
+        "groups:\n  b: {material: m, shape: {box: {min: [0.3, 0.6], max: [0.6, 0.8]}}}\n"
+        "gravity: [0, -9.81]\ntime: {end: 0.1}\n";
+    const fs::path dir = fs::temp_directory_path() / "talus_misspelt_field_test";
+    fs::remove_all(dir);
+    auto s = talus::test::sim_from_text(yaml);
+    talus::RunOptions opt;
+    opt.output_dir = dir;
+    opt.final_field = "plastic_deviatoric_strian";
+    std::ostringstream log;
+    try {
+        talus::run_scenario(s->scenario, opt, log);
+        FAIL() << "the run started";
+    } catch (const talus::Error &e) {
+        EXPECT_TRUE(talus::test::contains(e.what(), "did you mean 'plastic_deviatoric_strain'"))
+            << e.what();
+    }
+    EXPECT_FALSE(fs::exists(dir));
 }

@@ -26,7 +26,17 @@ struct RunOptions {
     bool progress_tty = false;
     double progress_interval = 10.0;
     SolverOptions solver;
+    // When set, the run ends by writing final_particles.csv in the output
+    // folder: id, group, coordinates and this field of every particle (a
+    // scalar state variable of the materials, or one of kFinalFieldBuiltins).
+    // Checked before the first step.
+    std::string final_field;
 };
+
+// Fields every particle has, for RunOptions::final_field: mean stress p and
+// von Mises q as in the VTK output, J = det F, the speed and the magnitude
+// of the displacement.
+inline constexpr const char *kFinalFieldBuiltins[] = {"displacement", "speed", "p", "q", "J"};
 
 // A run estimated to take more steps, or to write more VTK files, than
 // these is almost always a mistake in the input (a unit, a cadence):
