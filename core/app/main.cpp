@@ -146,16 +146,19 @@ int main(int argc, char **argv) {
     run->add_option("--threads", threads, "Number of threads (default: OpenMP's, all cores)")
         ->check(CLI::PositiveNumber);
     std::string run_plot, run_plot_field = "displacement";
-    run->add_option("--plot", run_plot,
-                    "After the last step, draw the particles where they ended, coloured by "
-                    "--plot-field, with matplotlib (also writes final_particles.csv in the "
-                    "output folder)")
-        ->type_name("FILE.png");
-    run->add_option("--plot-field", run_plot_field,
-                    "Field for --plot: a scalar state variable of the materials (e.g. "
-                    "plastic_deviatoric_strain) or displacement, speed, p, q, J (default "
-                    "displacement)")
-        ->type_name("NAME");
+    auto *plot_option =
+        run->add_option("--plot", run_plot,
+                        "After the last step, draw the particles where they ended, coloured by "
+                        "--plot-field, with matplotlib (also writes final_particles.csv in the "
+                        "output folder)")
+            ->type_name("FILE.png");
+    auto *plot_field_option =
+        run->add_option("--plot-field", run_plot_field,
+                        "Field for --plot: a scalar state variable of the materials (e.g. "
+                        "plastic_deviatoric_strain) or displacement, speed, p, q, J (default "
+                        "displacement)")
+            ->type_name("NAME");
+    plot_field_option->needs(plot_option);
     auto *validate = app.add_subcommand("validate", "Check a scenario file without running it");
     std::string validate_file;
     validate->add_option("scenario", validate_file, "Scenario file (YAML)")
@@ -278,7 +281,16 @@ int main(int argc, char **argv) {
             ro.progress_tty = isatty(2) != 0;
             ro.progress_interval = progress_every;
             ro.solver.threads = threads;
-            if (!run_plot.empty()) ro.final_field = run_plot_field;
+            if (!run_plot.empty()) {
+                // A picture that cannot be written is found out now, not
+                // after the run.
+                const std::filesystem::path folder =
+                    std::filesystem::absolute(run_plot).parent_path();
+                if (!std::filesystem::is_directory(folder))
+                    throw talus::Error(fmt::format("--plot {}: the folder {} does not exist",
+                                                   run_plot, folder.string()));
+                ro.final_field = run_plot_field;
+            }
             const talus::RunSummary rs = talus::run_scenario(sc, ro, std::cerr);
             std::cerr << fmt::format(
                 "talus: {} steps to t = {:.6g} s, {} particles, {:.1f} s wall, {:.3g} "

@@ -48,11 +48,11 @@ void draw_with_matplotlib(const std::string &script, const std::vector<std::stri
     const bool written = std::fwrite(script.data(), 1, script.size(), pipe) == script.size();
     const int status = pclose(pipe);
     if (!written || status == -1 || !WIFEXITED(status) || WEXITSTATUS(status) != 0)
-        throw Error(fmt::format("{}: python3 with matplotlib failed to draw {} (exit status "
-                                "{}); it needs Debian's python3-matplotlib (or set TALUS_PYTHON "
-                                "to a python3 that has matplotlib)",
-                                option, png.string(),
-                                WIFEXITED(status) ? WEXITSTATUS(status) : -1));
+        throw Error(
+            fmt::format("{}: python3 failed to draw {} (exit status {}; its message, if any, "
+                        "is above); it needs Debian's python3-matplotlib (or set TALUS_PYTHON "
+                        "to a python3 that has matplotlib)",
+                        option, png.string(), WIFEXITED(status) ? WEXITSTATUS(status) : -1));
     if (!std::filesystem::exists(png))
         throw Error(fmt::format("{}: {} was not written", option, png.string()));
 }
