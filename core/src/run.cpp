@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <ostream>
 #include <unistd.h>
@@ -433,39 +434,50 @@ bool is_builtin_field(const std::string &field) {
 }
 
 // final_particles.csv: one row per particle; NaN where a particle's
-// material lacks the state variable.
+// material lacks the state variable. The field is resolved once, not per
+// particle.
 void write_final_particles(const fs::path &file, const Simulation &sim, const std::string &field,
                            const std::vector<long> &offsets) {
+    enum class Kind { displacement, speed, p, q, J, state };
+    const Kind kind = field == "displacement" ? Kind::displacement
+                      : field == "speed"      ? Kind::speed
+                      : field == "p"          ? Kind::p
+                      : field == "q"          ? Kind::q
+                      : field == "J"          ? Kind::J
+                                              : Kind::state;
     const int D = sim.scenario().dim;
-    std::string text = "id,group,x,y";
-    if (D == 3) text += ",z";
-    text += "," + field + "\n";
+    std::string text = D == 3 ? "id,group,x,y,z," : "id,group,x,y,";
+    text += field;
+    text += '\n';
+    auto out = std::back_inserter(text);
     for (const ParticleSet &s : sim.sets())
         for (std::size_t p = 0; p < s.n; ++p) {
             double value = std::numeric_limits<double>::quiet_NaN();
-            const sdk::Vec6 v6 = Eigen::Map<const sdk::Vec6>(&s.stress[6 * p]);
-            double sq = 0.0, su = 0.0;
-            for (int d = 0; d < D; ++d) {
-                const std::size_t dd = static_cast<std::size_t>(d);
-                sq += s.v[dd][p] * s.v[dd][p];
-                su += (s.x[dd][p] - s.x0[dd][p]) * (s.x[dd][p] - s.x0[dd][p]);
+            const auto stress = [&] { return Eigen::Map<const sdk::Vec6>(&s.stress[6 * p]); };
+            const auto norm = [&](auto component) {
+                double sum = 0.0;
+                for (std::size_t d = 0; d < static_cast<std::size_t>(D); ++d)
+                    sum += component(d) * component(d);
+                return std::sqrt(sum);
+            };
+            switch (kind) {
+            case Kind::displacement:
+                value = norm([&](std::size_t d) { return s.x[d][p] - s.x0[d][p]; });
+                break;
+            case Kind::speed: value = norm([&](std::size_t d) { return s.v[d][p]; }); break;
+            case Kind::p: value = sdk::mean_pressure(stress()); break;
+            case Kind::q: value = sdk::von_mises(stress()); break;
+            case Kind::J: value = s.J[p]; break;
+            case Kind::state:
+                if (offsets[s.material] >= 0)
+                    value =
+                        s.state[s.state_size * p + static_cast<std::size_t>(offsets[s.material])];
+                break;
             }
-            if (field == "displacement")
-                value = std::sqrt(su);
-            else if (field == "speed")
-                value = std::sqrt(sq);
-            else if (field == "p")
-                value = sdk::mean_pressure(v6);
-            else if (field == "q")
-                value = sdk::von_mises(v6);
-            else if (field == "J")
-                value = s.J[p];
-            else if (offsets[s.material] >= 0)
-                value = s.state[s.state_size * p + static_cast<std::size_t>(offsets[s.material])];
-            text += fmt::format("{},{}", s.id[p], s.group[p]);
-            for (int d = 0; d < D; ++d)
-                text += fmt::format(",{:.9g}", s.x[static_cast<std::size_t>(d)][p]);
-            text += fmt::format(",{:.9g}\n", value);
+            fmt::format_to(out, "{},{}", s.id[p], s.group[p]);
+            for (std::size_t d = 0; d < static_cast<std::size_t>(D); ++d)
+                fmt::format_to(out, ",{:.9g}", s.x[d][p]);
+            fmt::format_to(out, ",{:.9g}\n", value);
         }
     write_file_atomically(file, text);
 }
