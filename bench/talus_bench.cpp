@@ -2,8 +2,9 @@
 // line per case. Measures; asserts nothing (see bench/README.md).
 //
 //   talus_bench [--steps N] [--repeat R] [--case NAME] [--threads T] [--profile]
-#include <talus/solver.hpp>
-#include <talus/yaml_input.hpp>
+#include <talus/input/scenario_yaml.hpp>
+#include <talus/input/yaml_input.hpp>
+#include <talus/mpm/simulation.hpp>
 
 #include <fmt/format.h>
 

@@ -2,18 +2,19 @@
 // and validate). Every user error ends in one message on stderr and exit
 // status 1; command-line misuse exits with status 2 (CLI11's convention is
 // kept: 105 and up are its own parse errors, mapped to 2 here).
-#include <talus/conformance.hpp>
-#include <talus/crash_report.hpp>
+#include <talus/driver/point_driver.hpp>
 #include <talus/error.hpp>
-#include <talus/output_file.hpp>
-#include <talus/plugin_loader.hpp>
-#include <talus/point_driver.hpp>
+#include <talus/input/scenario_yaml.hpp>
+#include <talus/io/output_file.hpp>
+#include <talus/material/crash_report.hpp>
+#include <talus/material/plugin_loader.hpp>
+#include <talus/plugin_check/conformance.hpp>
 
 #include "particle_plot.hpp"
 #include "point_plot.hpp"
-#include <talus/run.hpp>
-#include <talus/scenario.hpp>
-#include <talus/yaml_input.hpp>
+#include <talus/driver/run.hpp>
+#include <talus/input/yaml_input.hpp>
+#include <talus/mpm/scenario.hpp>
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>

@@ -4,9 +4,10 @@
 
 #include "test_paths.hpp"
 
-#include <talus/scenario.hpp>
-#include <talus/solver.hpp>
-#include <talus/yaml_input.hpp>
+#include <talus/input/scenario_yaml.hpp>
+#include <talus/input/yaml_input.hpp>
+#include <talus/mpm/scenario.hpp>
+#include <talus/mpm/simulation.hpp>
 
 #include <cmath>
 #include <cstdlib>

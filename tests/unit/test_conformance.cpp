@@ -2,7 +2,7 @@
 // the check that its fault breaks: every check is shown able to fail.
 #include "test_paths.hpp"
 
-#include <talus/conformance.hpp>
+#include <talus/plugin_check/conformance.hpp>
 
 #include <gtest/gtest.h>
 

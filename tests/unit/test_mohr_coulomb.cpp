@@ -8,7 +8,7 @@
 #include "../../plugins/mohr_coulomb/principal_return.hpp"
 
 #include <talus/error.hpp>
-#include <talus/plugin_loader.hpp>
+#include <talus/material/plugin_loader.hpp>
 
 #include <Eigen/Dense>
 #include <gtest/gtest.h>

@@ -5,7 +5,7 @@
 #include "solver_helpers.hpp"
 #include "test_paths.hpp"
 
-#include <talus/plugin_loader.hpp>
+#include <talus/material/plugin_loader.hpp>
 
 #include <Eigen/Dense>
 #include <gtest/gtest.h>

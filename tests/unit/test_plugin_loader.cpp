@@ -3,7 +3,7 @@
 // is contained (failure status, never a crash or a NaN reaching the host).
 #include "test_paths.hpp"
 
-#include <talus/plugin_loader.hpp>
+#include <talus/material/plugin_loader.hpp>
 
 #include <gtest/gtest.h>
 

@@ -2,7 +2,7 @@
 // sub-stepping, and the errors a user sees for bad case files.
 #include "solver_helpers.hpp"
 
-#include <talus/point_driver.hpp>
+#include <talus/driver/point_driver.hpp>
 
 #include <Eigen/Dense>
 #include <gtest/gtest.h>

@@ -1,8 +1,9 @@
 // What `talus run` writes, against the solver it drives.
 #include "solver_helpers.hpp"
 
-#include <talus/point_driver.hpp>
-#include <talus/run.hpp>
+#include <talus/driver/point_driver.hpp>
+#include <talus/driver/run.hpp>
+#include <talus/input/scenario_yaml.hpp>
 
 #include <fmt/format.h>
 #include <gtest/gtest.h>

@@ -5,7 +5,7 @@
 // 2015). Together, in tensor product, these are what makes a uniform
 // velocity gradient reproduced exactly. All identities are exact in exact
 // arithmetic; 1e-13 allows a few roundings of terms of order one.
-#include <talus/shape_functions.hpp>
+#include <talus/mpm/shape_functions.hpp>
 
 #include <gtest/gtest.h>
 

@@ -3,7 +3,7 @@
 // matrix inverse: the closed form and its in-plane fast path must agree to
 // round-off (1e-13 of the stress), and Q sigma Q^T must keep the stress
 // invariants (trace, J2, determinant) to round-off.
-#include <talus/stress_rotation.hpp>
+#include <talus/mpm/stress_rotation.hpp>
 
 #include <talus/sdk/voigt.hpp>
 

@@ -2,7 +2,7 @@
 // suggestions, duplicate keys, types.
 #include "test_paths.hpp"
 
-#include <talus/yaml_input.hpp>
+#include <talus/input/yaml_input.hpp>
 
 #include <gtest/gtest.h>
 

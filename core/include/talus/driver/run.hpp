@@ -1,0 +1,99 @@
+// `talus run` and `talus validate`: everything decided before the first
+// step (the same code for both, so validate accepts what run accepts), the
+// time loop, and everything a run writes (VTK particles with a .pvd
+// collection, diagnostics.csv, probes.csv, progress lines).
+#pragma once
+
+#include <talus/mpm/simulation.hpp>
+
+#include <cstdint>
+#include <filesystem>
+#include <iosfwd>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace talus {
+
+struct RunOptions {
+    std::filesystem::path output_dir; // empty: a folder named after the scenario
+    bool force = false;               // overwrite a previous run's files
+    // Run even when the plan exceeds the limits (kMaxSteps, kMaxOutputFiles).
+    bool allow_large = false;
+    // Progress on stderr: a carriage-return line on a terminal; otherwise
+    // (log files, batch jobs) a plain line every `progress_interval` s.
+    bool progress = false;
+    bool progress_tty = false;
+    double progress_interval = 10.0;
+    SolverOptions solver;
+    // When set, the run ends by writing final_particles.csv in the output
+    // folder: id, group, coordinates and this field of every particle (a
+    // scalar state variable of the materials, or one of kFinalFieldBuiltins).
+    // Checked before the first step.
+    std::string final_field;
+};
+
+// Fields every particle has, for RunOptions::final_field: mean stress p and
+// von Mises q as in the VTK output, J = det F, the speed and the magnitude
+// of the displacement.
+inline constexpr const char *kFinalFieldBuiltins[] = {"displacement", "speed", "p", "q", "J"};
+
+// A run estimated to take more steps, or to write more VTK files, than
+// these is almost always a mistake in the input (a unit, a cadence):
+// `validate` warns, `run` refuses unless told otherwise.
+inline constexpr double kMaxSteps = 1e8;
+inline constexpr double kMaxOutputFiles = 1e5;
+
+// What validate reports and run checks before the first step.
+struct RunPlan {
+    ResourceEstimate estimate;            // from the input, before allocation
+    double memory_total = 0.0;            // bytes of physical memory
+    double memory_available = 0.0;        // bytes available now (0: unknown)
+    std::size_t particles = 0;            // generated
+    double first_dt = 0.0;                // fixed, or the stable step of the initial state
+    double steps = 0.0;                   // end time / first_dt: an estimate
+    double output_files = 0.0;            // VTK files the cadence asks for
+    std::vector<std::string> notes;       // worth knowing, not wrong
+    std::vector<std::string> over_limits; // refused by run unless allow_large
+};
+
+// Throws a located talus::Error when the grid and particles the scenario
+// asks for cannot fit in this machine's memory (the estimate is in the
+// message); called before anything is allocated.
+ResourceEstimate check_memory(const Scenario &scenario, double &memory_total,
+                              double &memory_available);
+
+// The checks of everything decided before the first step: memory, the
+// particles of every group (inside the grid, not empty), loads, fixities
+// and probes that select something, the plugins' view of the initial state,
+// a fixed dt against the stability limit, the step and file counts. Throws
+// talus::Error on the first problem; returns the set-up simulation.
+struct Prepared {
+    std::unique_ptr<Simulation> sim;
+    RunPlan plan;
+    std::vector<std::int64_t> probe_particles; // per probe (-1: not a particle probe)
+};
+Prepared prepare_run(Scenario &scenario, const SolverOptions &solver);
+
+// The output folder a run of `scenario_file` would use by default.
+std::filesystem::path default_output_dir(const std::string &scenario_file);
+
+struct RunSummary {
+    long steps = 0;
+    double time = 0.0;
+    double seconds = 0.0;
+    std::size_t particles = 0;
+    double particle_steps_per_second = 0.0;
+    int outputs = 0;
+    std::filesystem::path output_dir;
+};
+
+// Runs the scenario to its end time. Refuses (before any work) to write into
+// a folder holding a previous run's files unless options.force. Warnings go
+// to `log`. Throws talus::Error on failure: a failed write names the file
+// and the OS's reason; a failed step (plugin, inversion, a particle leaving)
+// first writes the state at that moment (failure_step<N>.vtu and a last
+// diagnostics row) and says where. Files written before stay.
+RunSummary run_scenario(Scenario &scenario, const RunOptions &options, std::ostream &log);
+
+} // namespace talus

@@ -1,0 +1,28 @@
+// The particles as VTK XML files ParaView opens directly: one unstructured
+// grid of vertex cells per output time (.vtu, binary appended data) and a
+// collection (.pvd) listing them with their times.
+#pragma once
+
+#include <talus/mpm/simulation.hpp>
+
+#include <filesystem>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace talus {
+
+// Writes the particles of `sim` to `file` (complete or not at all: through
+// a temporary renamed into place). Point data: id, group, material,
+// displacement, velocity, stress, p, q, volume, J, density, mass, F, and
+// the named plugin state variables (NaN where a material lacks one). Field
+// data: group_names and material_names, indexed by the group and material
+// arrays, so a viewer can show names for the integers.
+void write_vtu(const std::filesystem::path &file, const Simulation &sim,
+               const std::vector<std::string> &state_fields);
+
+// The collection: (time, file name relative to the .pvd) per entry.
+void write_pvd(const std::filesystem::path &file,
+               const std::vector<std::pair<double, std::string>> &entries);
+
+} // namespace talus

@@ -1,0 +1,127 @@
+// Particle storage: the particles of one material as a structure of arrays,
+// every array a column carved from one aligned arena (one allocation per
+// set, each column on its own cache line). Tensors use the ABI's layouts
+// (Voigt stress, row-major F) so that a plugin reads them in place.
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+
+namespace talus {
+
+class MaterialInstance;
+
+// One column of per-particle values (stride values per particle): indexed
+// like a vector; its storage belongs to the ParticleSet.
+template <class T>
+class Column {
+  public:
+    using value_type = T;
+    T &operator[](std::size_t i) { return data_[i]; }
+    const T &operator[](std::size_t i) const { return data_[i]; }
+    T *data() { return data_; }
+    const T *data() const { return data_; }
+    std::size_t size() const { return size_; }
+    bool empty() const { return size_ == 0; }
+    T *begin() { return data_; }
+    T *end() { return data_ + size_; }
+    const T *begin() const { return data_; }
+    const T *end() const { return data_ + size_; }
+    // Same values (not the same storage).
+    friend bool operator==(const Column &a, const Column &b) {
+        return a.size_ == b.size_ && std::equal(a.begin(), a.end(), b.begin());
+    }
+
+  private:
+    friend struct ParticleSet;
+    T *data_ = nullptr;
+    std::size_t size_ = 0;
+};
+
+struct ParticleSet {
+    std::size_t material = 0; // index into Scenario::materials
+    const MaterialInstance *instance = nullptr;
+    bool finite_strain = false;
+    std::uint32_t state_size = 0;
+    double rho0 = 0.0;
+    std::size_t n = 0;
+
+    Column<std::int64_t> id;    // stable particle id (output, probes)
+    Column<std::int32_t> group; // index into Scenario::groups
+    std::array<Column<double>, 3> x, x0, v, dx;
+    Column<double> mass, vol0, lp; // lp: GIMP half-width (cells)
+    Column<double> F, F_new;       // 9 per point, row-major
+    Column<double> J, rho;
+    Column<double> stress; // 6 per point, Voigt, Cauchy, tension +
+    Column<double> state;  // state_size per point
+    Column<double> de;     // strain increment, 6 per point
+    Column<double> c;      // wave speed from the plugin
+    Column<double> L;      // velocity gradient, 9 per point
+    Column<double> C;      // affine velocity matrix for APIC / TPIC, 9 per point
+    Column<double> work;   // accumulated stress work, J
+    Column<double> divv;   // velocity divergence (cell-averaged dilation)
+    Column<std::uint32_t> load_mask, fix_mask; // bit k: loads[k] / particle_velocities[k]
+
+    // Which optional columns this run needs (the others stay empty): the
+    // third components only in 3D, L and dx unless USL does its kinematics
+    // inside G2P, C for the affine transfers, divv for cell-averaged dilation.
+    // Set before the first resize().
+    int dim = 3;
+    bool has_L = true, has_dx = true, has_C = true, has_divv = true;
+
+    ParticleSet() = default;
+    ParticleSet(ParticleSet &&) noexcept = default;
+    ParticleSet &operator=(ParticleSet &&) noexcept = default;
+
+    // New particles are zero; existing ones keep their values.
+    void resize(std::size_t count);
+    // Moves particle `from` to slot `to` (compaction).
+    void move(std::size_t from, std::size_t to);
+    // Calls f(column, values per particle) for every column in use.
+    template <class Fn>
+    void for_each_column(Fn &&f);
+    // Bytes per particle of the columns in use.
+    std::size_t bytes_per_particle();
+
+  private:
+    struct Free {
+        void operator()(std::byte *p) const;
+    };
+    std::unique_ptr<std::byte[], Free> arena_;
+    std::size_t capacity_ = 0;
+};
+
+template <class Fn>
+void ParticleSet::for_each_column(Fn &&f) {
+    f(id, 1);
+    f(group, 1);
+    for (int d = 0; d < dim; ++d) {
+        const std::size_t dd = static_cast<std::size_t>(d);
+        f(x[dd], 1);
+        f(x0[dd], 1);
+        f(v[dd], 1);
+        if (has_dx) f(dx[dd], 1);
+    }
+    f(mass, 1);
+    f(vol0, 1);
+    f(lp, 1);
+    f(F, 9);
+    f(F_new, 9);
+    f(J, 1);
+    f(rho, 1);
+    f(stress, 6);
+    if (state_size > 0) f(state, state_size);
+    f(de, 6);
+    f(c, 1);
+    if (has_L) f(L, 9);
+    if (has_C) f(C, 9);
+    f(work, 1);
+    if (has_divv) f(divv, 1);
+    f(load_mask, 1);
+    f(fix_mask, 1);
+}
+
+} // namespace talus

@@ -1,0 +1,181 @@
+// A scenario as plain data: what `talus run` reads from YAML
+// (input/scenario_yaml.hpp), validated completely (schema and each plugin's
+// own parameter metadata) before any work starts. No YAML and no live
+// plugin instance in here: the Simulation makes its materials' instances.
+// docs/scenario-reference.md documents every key; a test keeps the two in
+// step through scenario_schema().
+#pragma once
+
+#include <talus/material/material_spec.hpp>
+#include <talus/mpm/shape_functions.hpp>
+#include <talus/mpm/time_function.hpp>
+
+#include <array>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace talus {
+
+using Vec3 = std::array<double, 3>;
+
+// Where an entry of the scenario file came from, so that a problem found
+// after reading (a group outside the grid, a box that selects nothing) is
+// still reported at file:line:column with its key. Empty for scenarios
+// built in code.
+struct Origin {
+    std::string where; // "file:line:column"
+    std::string key;   // "groups.block"
+    // "<where>: error: '<key>' <what>", or "error: <what>" without a place.
+    std::string error(std::string_view what) const;
+    std::string warning(std::string_view what) const;
+    std::string note(std::string_view what) const;
+};
+
+struct Box {
+    Vec3 min{0, 0, 0}, max{0, 0, 0};
+    bool contains(const double *x, int dim) const {
+        for (int d = 0; d < dim; ++d)
+            if (x[d] < min[d] || x[d] > max[d]) return false;
+        return true;
+    }
+};
+
+// Geometry of a particle group.
+struct GroupShape {
+    enum class Kind { box, sphere, cylinder, polygon } kind = Kind::box;
+    Box box;                                    // box
+    Vec3 center{0, 0, 0};                       // sphere (disk in 2D), cylinder
+    double radius = 0.0;                        // sphere, cylinder
+    int axis = 2;                               // cylinder axis (0, 1, 2)
+    double zmin = 0.0, zmax = 0.0;              // cylinder extent along its axis
+    std::vector<std::array<double, 2>> polygon; // 2D polygon vertices
+    bool contains(const double *x, int dim) const;
+    Box bounds(int dim) const;
+    // Area (2D) or volume (3D) of the shape, m^2 or m^3.
+    double measure(int dim) const;
+};
+
+struct InitialStress {
+    enum class Kind { none, uniform, geostatic } kind = Kind::none;
+    std::array<double, 6> uniform{0, 0, 0, 0, 0, 0}; // Voigt, Pa, tension +
+    double k0 = 0.5;                                 // geostatic: sigma_h / sigma_v
+    std::optional<double> surface;                   // geostatic: free-surface level
+};
+
+struct GroupSpec {
+    std::string name;
+    std::size_t material = 0; // index into Scenario::materials
+    GroupShape shape;
+    int particles_per_cell = 2; // per direction
+    Vec3 velocity{0, 0, 0};
+    // Rigid rotation added to the initial velocity, about the centre of the
+    // shape's bounding box: rad/s about z in 2D, a vector in 3D.
+    Vec3 angular_velocity{0, 0, 0};
+    InitialStress stress;
+    Origin origin, shape_origin, stress_origin;
+};
+
+struct NamedMaterial {
+    std::string name;
+    MaterialSpec spec;
+    Origin origin; // where the material is defined, for a plugin's refusal
+};
+
+// One optional function of time per component x, y, z.
+struct ComponentFunctions {
+    std::array<std::optional<PiecewiseLinear>, 3> c;
+};
+
+// What a face does to the material at it (docs/scenario-reference.md):
+//   fixed:    no motion at all (bilateral, sticking)
+//   roller:   no normal motion, either way (bilateral), tangential free
+//   slip:     frictionless contact: the material cannot enter the wall but
+//             may leave it (unilateral), tangential free
+//   friction: slip plus Coulomb friction while in contact
+enum class FaceType { free, fixed, roller, slip, friction };
+struct FaceCondition {
+    FaceType type = FaceType::free;
+    double friction = 0.0; // Coulomb coefficient, with FaceType::friction (0 for slip)
+};
+
+struct NodalVelocity { // prescribed grid velocity in a box
+    Box box;
+    ComponentFunctions velocity;
+    Origin origin;
+};
+
+struct ParticleVelocity { // particle velocity fixity on a group or in a box
+    std::optional<std::size_t> group;
+    std::optional<Box> box;
+    ComponentFunctions velocity;
+    Origin origin;
+};
+
+struct Load {
+    enum class Kind { point, traction } kind = Kind::point;
+    std::optional<std::size_t> group;
+    std::optional<Box> box;
+    std::array<PiecewiseLinear, 3> value; // force (N) per particle, or traction (Pa)
+    Origin origin;
+};
+
+struct Probe {
+    enum class Kind { particle, centre_of_mass } kind = Kind::particle;
+    std::string name;
+    Vec3 point{0, 0, 0};   // particle: the one nearest this point at t = 0
+    std::size_t group = 0; // centre_of_mass
+    Origin origin;
+};
+
+enum class Scheme { usl, usf, musl, usavg };
+enum class Transfer { flip, apic, tpic };
+enum class LeavePolicy { stop, remove };
+
+struct SolverSpec {
+    Scheme scheme = Scheme::usl;
+    Transfer transfer = Transfer::flip;
+    double alpha = 1.0; // FLIP fraction of the FLIP/PIC blend (seed 000 eq. 36)
+    ShapeKind shape = ShapeKind::bspline2;
+    double cfl = 0.3;
+    std::optional<double> dt; // fixed time step
+    Origin dt_origin;
+    bool second_order_position = false;
+    bool cell_averaged_dilation = false;
+    LeavePolicy leave = LeavePolicy::stop;
+};
+
+struct OutputSpec {
+    double every = 0.0; // s; 0: only the start and the end
+    bool vtk = true;
+    std::vector<std::string> state_fields; // plugin state variables to write; empty: those flagged
+    bool all_flagged_state = true;
+    std::vector<Probe> probes;
+    Origin every_origin;
+};
+
+struct Scenario {
+    std::string file;
+    int dim = 2;
+    Vec3 origin{0, 0, 0}, size{0, 0, 0};
+    double cell = 0.0;
+    std::vector<NamedMaterial> materials;
+    std::vector<GroupSpec> groups;
+    std::array<FaceCondition, 6> faces; // x-, x+, y-, y+, z-, z+
+    Vec3 gravity{0, 0, 0};
+    double gravity_ramp = 0.0; // s; gravity grows linearly to full over it
+    std::vector<NodalVelocity> nodal_velocities;
+    std::vector<ParticleVelocity> particle_velocities;
+    std::vector<Load> loads;
+    SolverSpec solver;
+    double end_time = 0.0;
+    OutputSpec output;
+    Origin grid_origin, end_origin;
+};
+
+// At most this many loads and particle_velocities entries (each particle
+// records its own in a 32-bit mask).
+inline constexpr std::size_t kMaxLoads = 32;
+
+} // namespace talus

@@ -1,0 +1,129 @@
+// The explicit MPM solver: particles, background grid and the grid cycle
+// (seed 000, phases 1-4), in 2D plane strain and 3D. docs/theory.md walks
+// through it equation by equation, docs/architecture.md through the files.
+#pragma once
+
+#include <talus/mpm/particles.hpp>
+#include <talus/mpm/scenario.hpp>
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace talus {
+
+struct Diagnostics {
+    long step = 0;
+    double time = 0.0, dt = 0.0;
+    double mass = 0.0;
+    std::array<double, 3> momentum{0, 0, 0};
+    double kinetic_energy = 0.0;
+    // Accumulated stress work, sum over steps and particles of V sigma : d_eps
+    // (trapezoidal in each step), J. Not a stored energy: for a hypoelastic
+    // model under large rotations or an elastic-plastic one it is path
+    // dependent and may be negative.
+    double stress_work = 0.0;
+    std::array<double, 3> angular_momentum{0, 0, 0}; // about the origin, z only in 2D
+    std::size_t particles = 0;
+    long removed = 0;   // particles removed after leaving the grid
+    long cut_steps = 0; // plugin cut-step requests honoured by sub-stepping
+    // Particle positions put back onto a closed face they had crossed (by
+    // round-off, or a time step above the stability limit), summed over steps
+    long held_at_faces = 0;
+    double held_depth = 0.0; // the deepest such crossing, m
+};
+
+// What a scenario will need, from its input alone: checked before anything
+// is allocated, so that a grid or a particle count that cannot fit is
+// refused with numbers instead of failing inside the allocator.
+struct ResourceEstimate {
+    double particles = 0.0; // from the groups' areas (2D) or volumes (3D)
+    double nodes = 0.0;     // including the ghost layers
+    double bytes = 0.0;     // particle and grid arrays
+};
+ResourceEstimate estimate_resources(const Scenario &scenario);
+
+struct SolverOptions {
+    int threads = 0;      // 0: OpenMP's default
+    int batch_size = 128; // points per plugin call
+    // Particles are re-sorted by cell when more than this fraction is out of
+    // cell order (checked every step at no extra pass), so that neighbours
+    // on the grid stay neighbours in memory; 0 disables sorting.
+    double sort_disorder = 0.01;
+};
+
+// One plugin call that failed, as the plugin received it (ABI conventions:
+// engineering shear, row-major F, Cauchy stress tension positive).
+struct FailedCall {
+    std::size_t material = 0; // index into Scenario::materials
+    std::int64_t particle = -1;
+    long step = 0;
+    double time = 0.0, dt = 0.0, density = 0.0;
+    std::array<double, 6> strain_increment{}, stress{};
+    std::array<double, 9> F_start{}, F_end{};
+    std::vector<double> state;
+    bool cut_step = false; // still asking for a smaller step after the host's cuts
+    std::string message;   // the plugin's
+};
+
+class Simulation {
+  public:
+    // Generates the particles of every group and the initial state; calls
+    // each plugin once on the initial state to get wave speeds.
+    Simulation(Scenario &scenario, SolverOptions options = {});
+    ~Simulation();
+    Simulation(const Simulation &) = delete;
+    Simulation &operator=(const Simulation &) = delete;
+
+    // Advances one explicit step of at most `max_dt` (also limited by the
+    // CFL condition or the fixed dt). Throws talus::Error, naming plugin,
+    // group, particle and step, when a material fails, a particle inverts,
+    // or particles leave the grid under the "stop" policy.
+    void step(double max_dt);
+
+    double time() const;
+    long steps() const;
+    double last_dt() const;
+    // dt = cfl h / max(c_p + |v_p|) for the current state (seed 000 eq. 45).
+    double critical_dt() const;
+    // Throws (located at solver.dt) if a fixed dt is above the stability
+    // limit h / max(c + |v|), i.e. critical_dt() / cfl: an unstable step.
+    // step() checks this every step; with no argument, for the current state.
+    void check_fixed_dt(double dt_crit) const;
+    void check_fixed_dt() const { check_fixed_dt(critical_dt()); }
+    // The caller has told the user that the fixed dt exceeds the cfl margin
+    // (talus run's plan): step() does not warn again.
+    void fixed_dt_warning_given();
+    Diagnostics diagnostics() const;
+    const std::vector<ParticleSet> &sets() const;
+    std::vector<ParticleSet> &sets();
+    const Scenario &scenario() const;
+    std::size_t particle_count() const;
+    // Total nodal mass of the last step's P2G (equals the particle mass by
+    // partition of unity).
+    double grid_mass() const;
+    // Wall time spent in each phase of the cycle so far (for profiling),
+    // named as the functions the scheme calls (docs/theory.md).
+    static constexpr int kPhases = 8;
+    std::array<double, kPhases> phase_seconds() const;
+    static const char *phase_name(int k);
+    // Threads the solver's parallel loops use.
+    static int max_threads();
+
+    // Warnings issued so far (fixed dt above the limit, ...), for the log.
+    const std::vector<std::string> &warnings() const;
+    // The inputs of the plugin call that failed at one particle, when a step
+    // threw because a plugin failed (or kept asking for smaller steps):
+    // enough for `talus point` to replay the call (point_driver.hpp).
+    const std::optional<FailedCall> &failed_call() const;
+
+    struct Impl;
+
+  private:
+    std::unique_ptr<Impl> impl_;
+};
+
+} // namespace talus

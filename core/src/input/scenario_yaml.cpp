@@ -1,0 +1,586 @@
+#include <talus/input/scenario_yaml.hpp>
+
+#include <talus/input/material_yaml.hpp>
+#include <talus/input/time_function_yaml.hpp>
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <map>
+
+namespace talus {
+
+namespace {
+
+using Keys = std::vector<std::string_view>;
+
+// The schema: the keys allowed in each mapping, by dotted path ('*' for a
+// user-chosen name). The reader checks against this table and
+// scenario_schema() lists it, so the documentation test and the reader can
+// never disagree.
+const std::vector<std::pair<std::string_view, Keys>> &schema() {
+    static const std::vector<std::pair<std::string_view, Keys>> s = {
+        {"",
+         {"talus", "dimension", "plugins", "grid", "materials", "groups", "boundaries", "gravity",
+          "nodal_velocities", "particle_velocities", "loads", "solver", "time", "output"}},
+        {"grid", {"origin", "size", "cell"}},
+        {"materials.*", {"model", "density", "initial_state"}},
+        {"groups.*",
+         {"material", "shape", "particles_per_cell", "velocity", "angular_velocity",
+          "initial_stress"}},
+        {"groups.*.shape", {"box", "sphere", "cylinder", "polygon"}},
+        {"groups.*.shape.box", {"min", "max"}},
+        {"groups.*.shape.sphere", {"center", "radius"}},
+        {"groups.*.shape.cylinder", {"center", "radius", "axis", "length"}},
+        {"groups.*.initial_stress", {"uniform", "geostatic"}},
+        {"groups.*.initial_stress.geostatic", {"k0", "surface"}},
+        {"boundaries", {"x-", "x+", "y-", "y+", "z-", "z+"}},
+        {"boundaries.*", {"friction"}},
+        {"gravity", {"value", "ramp"}},
+        {"nodal_velocities[]", {"box", "velocity"}},
+        {"nodal_velocities[].box", {"min", "max"}},
+        {"nodal_velocities[].velocity", {"x", "y", "z"}},
+        {"particle_velocities[]", {"group", "box", "velocity"}},
+        {"particle_velocities[].box", {"min", "max"}},
+        {"particle_velocities[].velocity", {"x", "y", "z"}},
+        {"loads[]", {"point", "traction", "group", "box"}},
+        {"loads[].box", {"min", "max"}},
+        {"solver",
+         {"scheme", "transfer", "shape", "cfl", "dt", "position_update", "cell_averaged_dilation",
+          "leaving_grid"}},
+        {"solver.transfer", {"type", "alpha"}},
+        {"time", {"end"}},
+        {"output", {"every", "vtk", "state", "probes"}},
+        {"output.probes[]", {"name", "particle", "centre_of_mass"}},
+    };
+    return s;
+}
+
+const Keys &keys(std::string_view path) {
+    for (const auto &[p, k] : schema())
+        if (p == path) return k;
+    throw std::logic_error("scenario schema has no entry for " + std::string(path));
+}
+
+void allow(const yaml::Node &n, std::string_view path) { n.allow_keys(keys(path)); }
+
+// One value out of a fixed set of words, with a suggestion for a typo.
+template <class E>
+E choose(const yaml::Node &n, const std::vector<std::pair<std::string_view, E>> &options) {
+    const std::string word = n.as_string();
+    std::vector<std::string_view> names;
+    for (const auto &[name, value] : options) {
+        if (word == name) return value;
+        names.push_back(name);
+    }
+    const std::string guess = yaml::closest_match(word, names);
+    std::string list;
+    for (auto nm : names)
+        list += (list.empty() ? "" : ", ") + std::string(nm);
+    n.fail(fmt::format("unknown value '{}'{}; expected one of: {}", word,
+                       guess.empty() ? "" : fmt::format(" (did you mean '{}'?)", guess), list));
+}
+
+// A vector of `dim` numbers.
+Vec3 vec(const yaml::Node &n, int dim, const char *unit) {
+    const std::vector<double> v = n.as_doubles();
+    if (static_cast<int>(v.size()) != dim)
+        n.fail(fmt::format("expected {} numbers ({}), one per dimension, got {}", dim, unit,
+                           v.size()));
+    Vec3 out{0, 0, 0};
+    for (int d = 0; d < dim; ++d)
+        out[static_cast<std::size_t>(d)] = v[static_cast<std::size_t>(d)];
+    return out;
+}
+
+double positive(const yaml::Node &n, const char *what) {
+    const double v = n.as_double();
+    if (!(v > 0.0)) n.fail(fmt::format("expected {} > 0, got {:g}", what, v));
+    return v;
+}
+
+Origin origin_of(const yaml::Node &n, std::string key = {}) {
+    return Origin{n.where(), key.empty() ? n.path() : std::move(key)};
+}
+
+// A velocity above the speed of light is a typo (or a unit error), and its
+// square overflows the energy diagnostics long before that matters.
+void check_speed(const yaml::Node &n, const Vec3 &v) {
+    constexpr double c_light = 299792458.0;
+    const double speed = std::hypot(v[0], v[1], v[2]);
+    if (!(speed < c_light))
+        n.fail(fmt::format("a speed of {:g} m/s is not a velocity of a continuum (faster than "
+                           "light); check the value and its units",
+                           speed));
+}
+
+Box read_box(const yaml::Node &n, std::string_view path, int dim) {
+    n.expect_map();
+    allow(n, path);
+    Box b;
+    b.min = vec(n.require("min"), dim, "m");
+    b.max = vec(n.require("max"), dim, "m");
+    for (int d = 0; d < dim; ++d)
+        if (!(b.max[static_cast<std::size_t>(d)] > b.min[static_cast<std::size_t>(d)]))
+            n.fail(fmt::format("expected max > min in every direction (direction {})", "xyz"[d]));
+    return b;
+}
+
+ComponentFunctions read_components(const yaml::Node &n, std::string_view path, int dim) {
+    n.expect_map();
+    allow(n, path);
+    ComponentFunctions f;
+    for (int d = 0; d < 3; ++d) {
+        const char name[2] = {"xyz"[d], 0};
+        const yaml::Node c = n.get(name);
+        if (!c.raw().IsDefined()) continue;
+        if (d >= dim) c.fail(fmt::format("a {}D scenario has no '{}' component", dim, name));
+        f.c[static_cast<std::size_t>(d)] = read_piecewise_linear(c);
+    }
+    return f;
+}
+
+std::size_t group_index(const yaml::Node &n, const Scenario &s) {
+    const std::string name = n.as_string();
+    std::vector<std::string> names;
+    for (std::size_t g = 0; g < s.groups.size(); ++g) {
+        if (s.groups[g].name == name) return g;
+        names.push_back(s.groups[g].name);
+    }
+    const std::string guess = yaml::closest_match(name, std::span<const std::string>(names));
+    n.fail(fmt::format("no group named '{}'{}", name,
+                       guess.empty() ? "" : fmt::format(" (did you mean '{}'?)", guess)));
+}
+
+GroupShape read_shape(const yaml::Node &n, int dim) {
+    n.expect_map();
+    allow(n, "groups.*.shape");
+    if (n.keys().size() != 1) n.fail("expected exactly one of box, sphere, cylinder, polygon");
+    GroupShape s;
+    if (const yaml::Node b = n.get("box"); b.defined()) {
+        s.kind = GroupShape::Kind::box;
+        s.box = read_box(b, "groups.*.shape.box", dim);
+    } else if (const yaml::Node sp = n.get("sphere"); sp.defined()) {
+        s.kind = GroupShape::Kind::sphere;
+        allow(sp, "groups.*.shape.sphere");
+        s.center = vec(sp.require("center"), dim, "m");
+        s.radius = positive(sp.require("radius"), "radius (m)");
+    } else if (const yaml::Node c = n.get("cylinder"); c.defined()) {
+        if (dim != 3) c.fail("a cylinder needs a 3D scenario (in 2D use sphere, a disk)");
+        s.kind = GroupShape::Kind::cylinder;
+        allow(c, "groups.*.shape.cylinder");
+        s.center = vec(c.require("center"), dim, "m");
+        s.radius = positive(c.require("radius"), "radius (m)");
+        s.axis = choose<int>(c.require("axis"), {{"x", 0}, {"y", 1}, {"z", 2}});
+        const double len = positive(c.require("length"), "length (m)");
+        s.zmin = s.center[static_cast<std::size_t>(s.axis)] - len / 2;
+        s.zmax = s.center[static_cast<std::size_t>(s.axis)] + len / 2;
+    } else {
+        const yaml::Node p = n.require("polygon");
+        if (dim != 2) p.fail("a polygon needs a 2D scenario");
+        s.kind = GroupShape::Kind::polygon;
+        p.expect_sequence();
+        for (std::size_t i = 0; i < p.size(); ++i) {
+            const Vec3 v = vec(p.at(i), 2, "m");
+            s.polygon.push_back({v[0], v[1]});
+        }
+        if (s.polygon.size() < 3) p.fail("expected at least 3 vertices [x, y]");
+    }
+    return s;
+}
+
+InitialStress read_initial_stress(const yaml::Node &n) {
+    n.expect_map();
+    allow(n, "groups.*.initial_stress");
+    if (n.keys().size() != 1) n.fail("expected exactly one of uniform, geostatic");
+    InitialStress s;
+    if (const yaml::Node u = n.get("uniform"); u.defined()) {
+        s.kind = InitialStress::Kind::uniform;
+        const std::vector<double> v = u.as_doubles();
+        if (v.size() != 6)
+            u.fail(fmt::format("expected 6 components [xx, yy, zz, xy, yz, xz] in Pa, got {}",
+                               v.size()));
+        std::copy(v.begin(), v.end(), s.uniform.begin());
+    } else {
+        const yaml::Node g = n.require("geostatic");
+        s.kind = InitialStress::Kind::geostatic;
+        if (g.is_map()) {
+            allow(g, "groups.*.initial_stress.geostatic");
+            if (const yaml::Node k = g.get("k0"); k.defined()) {
+                s.k0 = k.as_double();
+                if (!(s.k0 >= 0.0)) k.fail(fmt::format("expected k0 >= 0, got {:g}", s.k0));
+            }
+            if (const yaml::Node sf = g.get("surface"); sf.defined()) s.surface = sf.as_double();
+        } else if (!(g.is_scalar() && g.raw().Scalar().empty()) && g.defined()) {
+            g.fail("expected a mapping {k0: ..., surface: ...} (both optional)");
+        }
+    }
+    return s;
+}
+
+} // namespace
+
+std::vector<std::string> scenario_schema() {
+    std::vector<std::string> out;
+    for (const auto &[path, ks] : schema())
+        for (auto k : ks)
+            out.push_back(path.empty() ? std::string(k) : std::string(path) + "." + std::string(k));
+    return out;
+}
+
+Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
+    Scenario s;
+    s.file = root.file();
+    allow(root, "");
+    const yaml::Node version = root.require("talus");
+    if (version.as_integer() != 1)
+        version.fail(fmt::format("unsupported file format version {}; this talus reads version 1",
+                                 version.as_integer()));
+    const yaml::Node dim = root.require("dimension");
+    s.dim = static_cast<int>(dim.as_integer());
+    if (s.dim != 2 && s.dim != 3)
+        dim.fail(fmt::format("expected 2 (plane strain) or 3, got {}", s.dim));
+
+    if (const yaml::Node plugins = root.get("plugins"); plugins.defined())
+        load_plugin_list(plugins, registry);
+
+    // Grid.
+    const yaml::Node grid = root.require("grid");
+    allow(grid, "grid");
+    s.grid_origin = origin_of(grid);
+    s.origin = vec(grid.require("origin"), s.dim, "m");
+    s.size = vec(grid.require("size"), s.dim, "m");
+    const yaml::Node cell = grid.require("cell");
+    s.cell = positive(cell, "cell (m)");
+    for (int d = 0; d < s.dim; ++d) {
+        const double n = s.size[static_cast<std::size_t>(d)] / s.cell;
+        if (!(s.size[static_cast<std::size_t>(d)] > 0.0))
+            grid.require("size").fail("expected every size > 0 (m)");
+        // The grid is uniform: the size must be a whole number of cells.
+        if (std::abs(n - std::round(n)) > 1e-9 * std::max(1.0, n))
+            cell.fail(
+                fmt::format("size {:g} in direction {} is not a whole number of cells of {:g} "
+                            "({:.6g} cells)",
+                            s.size[static_cast<std::size_t>(d)], "xyz"[d], s.cell, n));
+        if (std::round(n) > 1e6) cell.fail("more than 1e6 cells in one direction");
+    }
+
+    // Materials.
+    const yaml::Node mats = root.require("materials");
+    mats.expect_map();
+    for (const std::string &name : mats.keys()) {
+        const yaml::Node m = mats.get(name);
+        NamedMaterial nm;
+        nm.name = name;
+        nm.spec = read_material(m, registry);
+        nm.origin = origin_of(m);
+        instantiate(nm.spec, m); // the plugin's verdict on the parameters, at their place
+        s.materials.push_back(std::move(nm));
+    }
+    if (s.materials.empty()) mats.fail("expected at least one material");
+
+    // Groups.
+    const yaml::Node groups = root.require("groups");
+    groups.expect_map();
+    for (const std::string &name : groups.keys()) {
+        const yaml::Node g = groups.get(name);
+        allow(g, "groups.*");
+        GroupSpec gs;
+        gs.name = name;
+        gs.origin = origin_of(g, "groups." + name);
+        const yaml::Node mat = g.require("material");
+        const std::string mname = mat.as_string();
+        std::vector<std::string> mnames;
+        bool found = false;
+        for (std::size_t i = 0; i < s.materials.size(); ++i) {
+            mnames.push_back(s.materials[i].name);
+            if (s.materials[i].name == mname) {
+                gs.material = i;
+                found = true;
+            }
+        }
+        if (!found) {
+            const std::string guess =
+                yaml::closest_match(mname, std::span<const std::string>(mnames));
+            mat.fail(fmt::format("no material named '{}' under materials{}", mname,
+                                 guess.empty() ? "" : fmt::format(" (did you mean '{}'?)", guess)));
+        }
+        gs.shape = read_shape(g.require("shape"), s.dim);
+        gs.shape_origin = origin_of(g.require("shape"), "groups." + name + ".shape");
+        if (const yaml::Node ppc = g.get("particles_per_cell"); ppc.defined()) {
+            const long long n = ppc.as_integer();
+            if (n < 1 || n > 16)
+                ppc.fail(fmt::format("expected 1 <= particles_per_cell <= 16, got {}", n));
+            gs.particles_per_cell = static_cast<int>(n);
+        }
+        if (const yaml::Node v = g.get("velocity"); v.defined()) {
+            gs.velocity = vec(v, s.dim, "m/s");
+            check_speed(v, gs.velocity);
+        }
+        if (const yaml::Node w = g.get("angular_velocity"); w.defined()) {
+            if (s.dim == 2)
+                gs.angular_velocity = {0.0, 0.0, w.as_double()};
+            else
+                gs.angular_velocity = vec(w, 3, "rad/s");
+            // The fastest point of the rigid rotation: |w| times the largest
+            // distance from the centre of the shape's bounding box.
+            const Box bb = gs.shape.bounds(s.dim);
+            double r2 = 0.0;
+            for (int d = 0; d < s.dim; ++d)
+                r2 += std::pow(0.5 * (bb.max[static_cast<std::size_t>(d)] -
+                                      bb.min[static_cast<std::size_t>(d)]),
+                               2);
+            const Vec3 &wv = gs.angular_velocity;
+            const double wn = std::sqrt(wv[0] * wv[0] + wv[1] * wv[1] + wv[2] * wv[2]);
+            check_speed(w, {wn * std::sqrt(r2), 0.0, 0.0});
+        }
+        if (const yaml::Node st = g.get("initial_stress"); st.defined()) {
+            gs.stress = read_initial_stress(st);
+            gs.stress_origin = origin_of(st, "groups." + name + ".initial_stress");
+        }
+        s.groups.push_back(std::move(gs));
+    }
+    if (s.groups.empty()) groups.fail("expected at least one group");
+
+    // Boundaries.
+    if (const yaml::Node b = root.get("boundaries"); b.defined()) {
+        allow(b, "boundaries");
+        const char *faces[6] = {"x-", "x+", "y-", "y+", "z-", "z+"};
+        for (int f = 0; f < 6; ++f) {
+            const yaml::Node c = b.get(faces[f]);
+            if (!c.raw().IsDefined()) continue;
+            if (f / 2 >= s.dim)
+                c.fail(fmt::format("a {}D scenario has no face '{}'", s.dim, faces[f]));
+            FaceCondition &fc = s.faces[static_cast<std::size_t>(f)];
+            if (c.is_map()) {
+                allow(c, "boundaries.*");
+                fc.type = FaceType::friction;
+                const yaml::Node mu = c.require("friction");
+                fc.friction = mu.as_double();
+                if (!(fc.friction >= 0.0))
+                    mu.fail(fmt::format("expected friction >= 0, got {:g}", fc.friction));
+            } else {
+                fc.type = choose<FaceType>(c, {{"free", FaceType::free},
+                                               {"fixed", FaceType::fixed},
+                                               {"slip", FaceType::slip},
+                                               {"roller", FaceType::roller}});
+            }
+        }
+    }
+
+    // Gravity.
+    if (const yaml::Node g = root.get("gravity"); g.defined()) {
+        if (g.is_map()) {
+            allow(g, "gravity");
+            s.gravity = vec(g.require("value"), s.dim, "m/s^2");
+            if (const yaml::Node r = g.get("ramp"); r.defined()) {
+                s.gravity_ramp = r.as_double();
+                if (!(s.gravity_ramp >= 0.0)) r.fail("expected ramp >= 0 (s)");
+            }
+        } else {
+            s.gravity = vec(g, s.dim, "m/s^2");
+        }
+    }
+
+    if (const yaml::Node nv = root.get("nodal_velocities"); nv.defined()) {
+        nv.expect_sequence();
+        for (std::size_t i = 0; i < nv.size(); ++i) {
+            const yaml::Node e = nv.at(i);
+            allow(e, "nodal_velocities[]");
+            NodalVelocity v;
+            v.origin = origin_of(e, fmt::format("nodal_velocities[{}]", i));
+            v.box = read_box(e.require("box"), "nodal_velocities[].box", s.dim);
+            v.velocity =
+                read_components(e.require("velocity"), "nodal_velocities[].velocity", s.dim);
+            s.nodal_velocities.push_back(std::move(v));
+        }
+    }
+    if (const yaml::Node pv = root.get("particle_velocities"); pv.defined()) {
+        pv.expect_sequence();
+        for (std::size_t i = 0; i < pv.size(); ++i) {
+            const yaml::Node e = pv.at(i);
+            allow(e, "particle_velocities[]");
+            if (i >= kMaxLoads)
+                e.fail(fmt::format("at most {} particle_velocities entries", kMaxLoads));
+            ParticleVelocity v;
+            v.origin = origin_of(e, fmt::format("particle_velocities[{}]", i));
+            if (const yaml::Node g = e.get("group"); g.defined()) v.group = group_index(g, s);
+            if (const yaml::Node b = e.get("box"); b.defined())
+                v.box = read_box(b, "particle_velocities[].box", s.dim);
+            if (!v.group && !v.box) e.fail("expected a group, a box, or both (their intersection)");
+            v.velocity =
+                read_components(e.require("velocity"), "particle_velocities[].velocity", s.dim);
+            s.particle_velocities.push_back(std::move(v));
+        }
+    }
+    if (const yaml::Node loads = root.get("loads"); loads.defined()) {
+        loads.expect_sequence();
+        for (std::size_t i = 0; i < loads.size(); ++i) {
+            const yaml::Node e = loads.at(i);
+            allow(e, "loads[]");
+            if (i >= kMaxLoads)
+                e.fail(fmt::format("at most {} loads (combine those on the same particles)",
+                                   kMaxLoads));
+            Load l;
+            l.origin = origin_of(e, fmt::format("loads[{}]", i));
+            const bool point = e.has("point"), traction = e.has("traction");
+            if (point == traction)
+                e.fail("expected exactly one of point (N per particle) or traction (Pa)");
+            l.kind = point ? Load::Kind::point : Load::Kind::traction;
+            const yaml::Node val = e.require(point ? "point" : "traction");
+            val.expect_sequence();
+            if (static_cast<int>(val.size()) != s.dim)
+                val.fail(fmt::format(
+                    "expected {} components, each a number or a [time, value] table", s.dim));
+            for (int d = 0; d < s.dim; ++d)
+                l.value[static_cast<std::size_t>(d)] =
+                    read_piecewise_linear(val.at(static_cast<std::size_t>(d)));
+            if (const yaml::Node g = e.get("group"); g.defined()) l.group = group_index(g, s);
+            if (const yaml::Node b = e.get("box"); b.defined())
+                l.box = read_box(b, "loads[].box", s.dim);
+            if (!l.group && !l.box) e.fail("expected a group, a box, or both (their intersection)");
+            s.loads.push_back(std::move(l));
+        }
+    }
+
+    // Solver.
+    if (const yaml::Node sv = root.get("solver"); sv.defined()) {
+        allow(sv, "solver");
+        SolverSpec &p = s.solver;
+        if (const yaml::Node n = sv.get("scheme"); n.defined())
+            p.scheme = choose<Scheme>(n, {{"usl", Scheme::usl},
+                                          {"usf", Scheme::usf},
+                                          {"musl", Scheme::musl},
+                                          {"usavg", Scheme::usavg}});
+        if (const yaml::Node n = sv.get("transfer"); n.defined()) {
+            const std::vector<std::pair<std::string_view, Transfer>> kinds = {
+                {"flip", Transfer::flip},
+                {"pic", Transfer::flip},
+                {"apic", Transfer::apic},
+                {"tpic", Transfer::tpic}};
+            if (n.is_map()) {
+                allow(n, "solver.transfer");
+                const yaml::Node t = n.require("type");
+                p.transfer = choose<Transfer>(t, kinds);
+                if (t.as_string() == "pic") p.alpha = 0.0;
+                if (const yaml::Node a = n.get("alpha"); a.defined()) {
+                    if (t.as_string() == "pic")
+                        a.fail("pic is the blend with alpha = 0; for a FLIP/PIC blend write "
+                               "{type: flip, alpha: A}");
+                    if (p.transfer != Transfer::flip)
+                        a.fail("alpha applies to the flip transfer only");
+                    p.alpha = a.as_double();
+                    if (!(p.alpha >= 0.0 && p.alpha <= 1.0))
+                        a.fail(fmt::format("expected 0 <= alpha <= 1 (0: PIC, 1: FLIP), got {:g}",
+                                           p.alpha));
+                }
+            } else {
+                p.transfer = choose<Transfer>(n, kinds);
+                if (n.as_string() == "pic") p.alpha = 0.0;
+            }
+        }
+        if (const yaml::Node n = sv.get("shape"); n.defined())
+            p.shape = choose<ShapeKind>(n, {{"linear", ShapeKind::linear},
+                                            {"gimp", ShapeKind::gimp},
+                                            {"bspline2", ShapeKind::bspline2},
+                                            {"bspline3", ShapeKind::bspline3}});
+        if (const yaml::Node n = sv.get("cfl"); n.defined()) {
+            p.cfl = n.as_double();
+            if (!(p.cfl > 0.0 && p.cfl <= 1.0))
+                n.fail(fmt::format("expected 0 < cfl <= 1, got {:g}", p.cfl));
+        }
+        if (const yaml::Node n = sv.get("dt"); n.defined()) {
+            p.dt = positive(n, "dt (s)");
+            p.dt_origin = origin_of(n);
+        }
+        // The particles move with the grid velocity field whose gradient
+        // advanced F in the step (docs/theory.md, "Kinematic consistency"):
+        // USF has only the start field when it updates the stress, USAVG
+        // uses both halves, so each has one position update (the solver
+        // applies it whatever this flag says).
+        if (const yaml::Node n = sv.get("position_update"); n.defined()) {
+            p.second_order_position =
+                choose<bool>(n, {{"first_order", false}, {"second_order", true}});
+            if (p.scheme == Scheme::usf && p.second_order_position)
+                n.fail("usf updates the stress from the start-of-step grid velocities, before the "
+                       "forces are known, and moves the particles with the same velocities, so "
+                       "its position update is first_order; second_order needs usl, musl or "
+                       "usavg");
+            if (p.scheme == Scheme::usavg && !p.second_order_position)
+                n.fail("usavg advances the deformation half with the start and half with the "
+                       "updated grid velocities, and moves the particles with their mean, so its "
+                       "position update is second_order; first_order needs usl, musl or usf");
+        }
+        if (const yaml::Node n = sv.get("cell_averaged_dilation"); n.defined())
+            p.cell_averaged_dilation = n.as_bool();
+        if (const yaml::Node n = sv.get("leaving_grid"); n.defined())
+            p.leave = choose<LeavePolicy>(
+                n, {{"stop", LeavePolicy::stop}, {"remove", LeavePolicy::remove}});
+    }
+
+    const yaml::Node time = root.require("time");
+    allow(time, "time");
+    s.end_time = positive(time.require("end"), "end (s)");
+    s.end_origin = origin_of(time.require("end"));
+
+    if (const yaml::Node out = root.get("output"); out.defined()) {
+        allow(out, "output");
+        if (const yaml::Node n = out.get("every"); n.defined()) {
+            s.output.every = positive(n, "every (s)");
+            s.output.every_origin = origin_of(n);
+        }
+        if (const yaml::Node n = out.get("vtk"); n.defined()) s.output.vtk = n.as_bool();
+        if (const yaml::Node st = out.get("state"); st.defined()) {
+            st.expect_sequence();
+            s.output.all_flagged_state = false;
+            for (std::size_t i = 0; i < st.size(); ++i) {
+                const yaml::Node e = st.at(i);
+                const std::string name = e.as_string();
+                std::vector<std::string> known;
+                for (const auto &m : s.materials)
+                    for (const auto &v : m.spec.model->state())
+                        known.push_back(v.name);
+                if (std::find(known.begin(), known.end(), name) == known.end()) {
+                    const std::string guess =
+                        yaml::closest_match(name, std::span<const std::string>(known));
+                    e.fail(fmt::format(
+                        "no material of this scenario has a state variable '{}'{}", name,
+                        guess.empty() ? "" : fmt::format(" (did you mean '{}'?)", guess)));
+                }
+                s.output.state_fields.push_back(name);
+            }
+        }
+        if (const yaml::Node pr = out.get("probes"); pr.defined()) {
+            pr.expect_sequence();
+            for (std::size_t i = 0; i < pr.size(); ++i) {
+                const yaml::Node e = pr.at(i);
+                allow(e, "output.probes[]");
+                Probe p;
+                p.name = e.require("name").as_string();
+                p.origin = origin_of(e, fmt::format("output.probes[{}]", i));
+                const bool part = e.has("particle"), com = e.has("centre_of_mass");
+                if (part == com)
+                    e.fail(
+                        "expected exactly one of particle: [x, y(, z)] or centre_of_mass: group");
+                if (part) {
+                    p.kind = Probe::Kind::particle;
+                    p.point = vec(e.require("particle"), s.dim, "m");
+                } else {
+                    p.kind = Probe::Kind::centre_of_mass;
+                    p.group = group_index(e.require("centre_of_mass"), s);
+                }
+                for (const Probe &q : s.output.probes)
+                    if (q.name == p.name)
+                        e.require("name").fail(fmt::format("probe name '{}' used twice", p.name));
+                s.output.probes.push_back(std::move(p));
+            }
+        }
+    }
+    return s;
+}
+
+// ------------------------------------------------------------- geometry --
+
+} // namespace talus

@@ -1,0 +1,162 @@
+#include <talus/input/yaml_input.hpp>
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+namespace talus::yaml {
+
+namespace {
+
+std::string mark_text(const std::string &file, const YAML::Mark &m) {
+    if (m.is_null()) return file;
+    return fmt::format("{}:{}:{}", file, m.line + 1, m.column + 1);
+}
+
+std::string child_path(const std::string &parent, std::string_view key) {
+    return parent.empty() ? std::string(key) : parent + "." + std::string(key);
+}
+
+} // namespace
+
+std::string Node::where() const { return mark_text(file_, node_.Mark()); }
+
+void Node::fail(const std::string &what) const {
+    const std::string key = path_.empty() ? std::string() : fmt::format(" '{}'", path_);
+    throw Error(fmt::format("{}: error:{} {}", where(), key, what));
+}
+
+bool Node::has(std::string_view key) const {
+    return node_.IsMap() && node_[std::string(key)].IsDefined();
+}
+
+Node Node::get(std::string_view key) const {
+    expect_map();
+    return Node(node_[std::string(key)], file_, child_path(path_, key));
+}
+
+Node Node::require(std::string_view key) const {
+    expect_map();
+    const YAML::Node child = node_[std::string(key)];
+    if (!child.IsDefined())
+        throw Error(
+            fmt::format("{}: error: missing required key '{}'", where(), child_path(path_, key)));
+    return Node(child, file_, child_path(path_, key));
+}
+
+Node Node::at(std::size_t index) const {
+    expect_sequence();
+    return Node(node_[index], file_, fmt::format("{}[{}]", path_, index));
+}
+
+std::vector<std::string> Node::keys() const {
+    expect_map();
+    std::vector<std::string> out;
+    std::vector<YAML::Mark> marks;
+    for (const auto &kv : node_) {
+        const std::string key = kv.first.as<std::string>();
+        // yaml-cpp keeps both of two equal keys and hands out the first for
+        // every lookup: a key (or a group or material name) given twice
+        // would silently lose its second definition.
+        const auto dup = std::find(out.begin(), out.end(), key);
+        if (dup != out.end())
+            throw Error(
+                fmt::format("{}: error: '{}' is given twice (first at {}); keys must be unique",
+                            mark_text(file_, kv.first.Mark()), child_path(path_, key),
+                            mark_text(file_, marks[static_cast<std::size_t>(dup - out.begin())])));
+        out.push_back(key);
+        marks.push_back(kv.first.Mark());
+    }
+    return out;
+}
+
+void Node::expect_map() const {
+    if (!node_.IsMap()) fail("expected a mapping (key: value pairs)");
+}
+void Node::expect_sequence() const {
+    if (!node_.IsSequence()) fail("expected a sequence ([a, b, ...])");
+}
+
+void Node::allow_keys(std::span<const std::string_view> allowed) const {
+    keys(); // rejects a key given twice
+    for (const auto &kv : node_) {
+        const std::string key = kv.first.as<std::string>();
+        if (std::find(allowed.begin(), allowed.end(), key) != allowed.end()) continue;
+        const std::string guess = closest_match(key, allowed);
+        std::string list;
+        for (const auto &a : allowed)
+            list += (list.empty() ? "" : ", ") + std::string(a);
+        const std::string hint =
+            guess.empty() ? fmt::format("allowed keys here: {}", list)
+                          : fmt::format("did you mean '{}'? (allowed keys here: {})", guess, list);
+        throw Error(fmt::format("{}: error: unknown key '{}'; {}",
+                                mark_text(file_, kv.first.Mark()), child_path(path_, key), hint));
+    }
+}
+
+double Node::as_double() const {
+    if (!node_.IsScalar()) fail("expected a number");
+    double v = 0.0;
+    try {
+        v = node_.as<double>();
+    } catch (const YAML::Exception &) {
+        fail(fmt::format("expected a number, got '{}'", node_.Scalar()));
+    }
+    if (!std::isfinite(v)) fail(fmt::format("expected a finite number, got '{}'", node_.Scalar()));
+    return v;
+}
+
+long long Node::as_integer() const {
+    if (!node_.IsScalar()) fail("expected an integer");
+    try {
+        return node_.as<long long>();
+    } catch (const YAML::Exception &) {
+        fail(fmt::format("expected an integer, got '{}'", node_.Scalar()));
+    }
+}
+
+bool Node::as_bool() const {
+    if (!node_.IsScalar()) fail("expected true or false");
+    try {
+        return node_.as<bool>();
+    } catch (const YAML::Exception &) {
+        fail(fmt::format("expected true or false, got '{}'", node_.Scalar()));
+    }
+}
+
+std::string Node::as_string() const {
+    if (!node_.IsScalar()) fail("expected a string");
+    return node_.Scalar();
+}
+
+std::vector<double> Node::as_doubles() const {
+    expect_sequence();
+    std::vector<double> out;
+    for (std::size_t i = 0; i < node_.size(); ++i)
+        out.push_back(at(i).as_double());
+    return out;
+}
+
+Node load_string(const std::string &text, const std::string &name) {
+    try {
+        YAML::Node root = YAML::Load(text);
+        if (!root.IsDefined() || root.IsNull())
+            throw Error(fmt::format("{}: error: the file is empty", name));
+        return Node(root, name, "");
+    } catch (const YAML::ParserException &e) {
+        throw Error(fmt::format("{}: error: YAML syntax: {}", mark_text(name, e.mark), e.msg));
+    }
+}
+
+Node load_file(const std::string &path) {
+    std::ifstream in(path);
+    if (!in) throw Error(fmt::format("{}: error: cannot open file", path));
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    return load_string(ss.str(), path);
+}
+
+} // namespace talus::yaml

@@ -1,0 +1,220 @@
+#include <talus/io/vtk_output.hpp>
+
+#include <talus/io/output_file.hpp>
+#include <talus/sdk/voigt.hpp>
+
+#include <fmt/format.h>
+
+#include <cstdint>
+#include <limits>
+#include <string_view>
+
+namespace talus {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// One appended data array: its XML header and its bytes.
+struct VtkArray {
+    std::string name, type;
+    int components = 1;
+    std::vector<char> bytes;
+    template <class T>
+    void put(T v) {
+        const char *p = reinterpret_cast<const char *>(&v);
+        bytes.insert(bytes.end(), p, p + sizeof(T));
+    }
+};
+
+// A field-data string array in VTK's ASCII form: each string as its byte
+// values, each ended by a 0 (what vtkXMLWriter writes for vtkStringArray).
+std::string string_array(std::string_view name, const std::vector<std::string> &values) {
+    std::string body;
+    for (const std::string &v : values) {
+        for (unsigned char c : v)
+            body += fmt::format("{} ", static_cast<int>(c));
+        body += "0 ";
+    }
+    return fmt::format("        <Array type=\"String\" Name=\"{}\" NumberOfTuples=\"{}\" "
+                       "format=\"ascii\">\n          {}\n        </Array>\n",
+                       name, values.size(), body);
+}
+
+// Names are the user's, written into XML: escape what XML reserves.
+std::string xml_escape(std::string_view s) {
+    std::string out;
+    for (char c : s) {
+        switch (c) {
+        case '&': out += "&amp;"; break;
+        case '<': out += "&lt;"; break;
+        case '>': out += "&gt;"; break;
+        case '"': out += "&quot;"; break;
+        default: out += c;
+        }
+    }
+    return out;
+}
+
+} // namespace
+
+void write_vtu(const fs::path &file, const Simulation &sim,
+               const std::vector<std::string> &state_fields) {
+    const Scenario &sc = sim.scenario();
+    const int D = sc.dim;
+    const std::size_t n = sim.particle_count();
+    std::vector<VtkArray> point_data;
+    // add() hands out references into point_data: no reallocation allowed.
+    point_data.reserve(13 + state_fields.size()); // the 13 fixed arrays below
+    auto add = [&](const std::string &name, const std::string &type, int comps) -> VtkArray & {
+        point_data.push_back(VtkArray{name, type, comps, {}});
+        point_data.back().bytes.reserve(n * static_cast<std::size_t>(comps) * 8);
+        return point_data.back();
+    };
+    VtkArray &id = add("id", "Int64", 1);
+    VtkArray &grp = add("group", "Int32", 1);
+    VtkArray &mat = add("material", "Int32", 1);
+    VtkArray &disp = add("displacement", "Float64", 3);
+    VtkArray &vel = add("velocity", "Float64", 3);
+    VtkArray &sig = add("stress", "Float64", 9);
+    VtkArray &pp = add("p", "Float64", 1);
+    VtkArray &qq = add("q", "Float64", 1);
+    VtkArray &vol = add("volume", "Float64", 1);
+    VtkArray &jj = add("J", "Float64", 1);
+    VtkArray &rho = add("density", "Float64", 1);
+    VtkArray &mass = add("mass", "Float64", 1);
+    VtkArray &F = add("F", "Float64", 9);
+    // State variables by name across materials; a particle whose material
+    // lacks one gets NaN (shown blank in ParaView).
+    struct StateField {
+        std::string name;
+        std::uint32_t size = 1;
+        std::size_t array = 0;
+    };
+    std::vector<StateField> sf;
+    for (const std::string &name : state_fields) {
+        std::uint32_t size = 0;
+        for (const auto &m : sc.materials)
+            for (const auto &v : m.spec.model->state())
+                if (v.name == name) size = std::max(size, v.size);
+        sf.push_back(StateField{name, size, point_data.size()});
+        add(name, "Float64", static_cast<int>(size));
+    }
+    VtkArray points{"Points", "Float64", 3, {}};
+    for (const ParticleSet &s : sim.sets()) {
+        // Where each written state field sits in this material's state
+        // vector (nullptr: the material has no such variable).
+        std::vector<const StateInfo *> info(sf.size(), nullptr);
+        for (std::size_t f = 0; f < sf.size(); ++f)
+            for (const auto &v : sc.materials[s.material].spec.model->state())
+                if (v.name == sf[f].name) info[f] = &v;
+        for (std::size_t p = 0; p < s.n; ++p) {
+            id.put<std::int64_t>(s.id[p]);
+            grp.put<std::int32_t>(s.group[p]);
+            mat.put<std::int32_t>(static_cast<std::int32_t>(s.material));
+            for (int d = 0; d < 3; ++d) {
+                const std::size_t dd = static_cast<std::size_t>(d);
+                const bool in = d < D;
+                points.put<double>(in ? s.x[dd][p] : 0.0);
+                disp.put<double>(in ? s.x[dd][p] - s.x0[dd][p] : 0.0);
+                vel.put<double>(in ? s.v[dd][p] : 0.0);
+            }
+            const sdk::Vec6 v6 = Eigen::Map<const sdk::Vec6>(&s.stress[6 * p]);
+            const sdk::Mat3 m = sdk::stress_to_matrix(v6);
+            for (int a = 0; a < 3; ++a)
+                for (int b = 0; b < 3; ++b)
+                    sig.put<double>(m(a, b));
+            pp.put<double>(sdk::mean_pressure(v6));
+            qq.put<double>(sdk::von_mises(v6));
+            vol.put<double>(s.J[p] * s.vol0[p]);
+            jj.put<double>(s.J[p]);
+            rho.put<double>(s.mass[p] / (s.J[p] * s.vol0[p]));
+            mass.put<double>(s.mass[p]);
+            for (int a = 0; a < 9; ++a) // row-major, as VTK reads a 3x3 tensor
+                F.put<double>(s.F[9 * p + static_cast<std::size_t>(a)]);
+            for (std::size_t f = 0; f < sf.size(); ++f) {
+                const StateInfo *in = info[f];
+                for (std::uint32_t k = 0; k < sf[f].size; ++k)
+                    point_data[sf[f].array].put<double>(
+                        in && k < in->size ? s.state[s.state_size * p + in->offset + k]
+                                           : std::numeric_limits<double>::quiet_NaN());
+            }
+        }
+    }
+    // One vertex cell per particle.
+    VtkArray conn{"connectivity", "Int64", 1, {}}, offs{"offsets", "Int64", 1, {}},
+        types{"types", "UInt8", 1, {}};
+    for (std::size_t i = 0; i < n; ++i) {
+        conn.put<std::int64_t>(static_cast<std::int64_t>(i));
+        offs.put<std::int64_t>(static_cast<std::int64_t>(i + 1));
+        types.put<std::uint8_t>(1); // VTK_VERTEX
+    }
+
+    std::vector<std::string> group_names, material_names;
+    for (const GroupSpec &g : sc.groups)
+        group_names.push_back(g.name);
+    for (const NamedMaterial &m : sc.materials)
+        material_names.push_back(m.name);
+
+    std::string xml;
+    std::uint64_t offset = 0;
+    auto header = [&](const VtkArray &a, bool named) {
+        xml += fmt::format(
+            "        <DataArray type=\"{}\"{} NumberOfComponents=\"{}\" format=\"appended\" "
+            "offset=\"{}\"/>\n",
+            a.type, named ? fmt::format(" Name=\"{}\"", xml_escape(a.name)) : std::string(),
+            a.components, offset);
+        offset += sizeof(std::uint64_t) + a.bytes.size();
+    };
+    xml += "<?xml version=\"1.0\"?>\n"
+           "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" "
+           "header_type=\"UInt64\">\n"
+           "  <UnstructuredGrid>\n"
+           "      <FieldData>\n";
+    xml += string_array("group_names", group_names);
+    xml += string_array("material_names", material_names);
+    xml += fmt::format("        <DataArray type=\"Float64\" Name=\"TimeValue\" "
+                       "NumberOfTuples=\"1\" format=\"ascii\">{:.17g}</DataArray>\n",
+                       sim.time());
+    xml += "      </FieldData>\n";
+    xml += fmt::format("    <Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">\n", n, n);
+    xml += "      <PointData>\n";
+    for (const VtkArray &a : point_data)
+        header(a, true);
+    xml += "      </PointData>\n      <Points>\n";
+    header(points, false);
+    xml += "      </Points>\n      <Cells>\n";
+    header(conn, true);
+    header(offs, true);
+    header(types, true);
+    xml += "      </Cells>\n    </Piece>\n  </UnstructuredGrid>\n  <AppendedData "
+           "encoding=\"raw\">\n   _";
+
+    AtomicFile out(file);
+    out.write(xml);
+    auto blob = [&](const VtkArray &a) {
+        const std::uint64_t len = a.bytes.size();
+        out.write(std::string_view(reinterpret_cast<const char *>(&len), sizeof len));
+        out.write(std::string_view(a.bytes.data(), a.bytes.size()));
+    };
+    for (const VtkArray &a : point_data)
+        blob(a);
+    blob(points);
+    blob(conn);
+    blob(offs);
+    blob(types);
+    out.write("\n  </AppendedData>\n</VTKFile>\n");
+    out.commit();
+}
+
+void write_pvd(const fs::path &file, const std::vector<std::pair<double, std::string>> &entries) {
+    std::string c = "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"1.0\" "
+                    "byte_order=\"LittleEndian\">\n  <Collection>\n";
+    for (const auto &[t, f] : entries)
+        c += fmt::format("    <DataSet timestep=\"{:.17g}\" part=\"0\" file=\"{}\"/>\n", t,
+                         xml_escape(f));
+    c += "  </Collection>\n</VTKFile>\n";
+    write_file_atomically(file, c);
+}
+
+} // namespace talus

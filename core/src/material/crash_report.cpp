@@ -1,0 +1,150 @@
+#include <talus/material/crash_report.hpp>
+
+#include <atomic>
+#include <csignal>
+#include <cstring>
+#include <unistd.h>
+
+namespace talus::crash {
+
+namespace {
+
+thread_local const PluginCall *t_call = nullptr;
+thread_local const Task *t_task = nullptr;
+
+std::atomic<LastAction> g_action{nullptr};
+std::atomic<void *> g_action_context{nullptr};
+std::atomic<int> g_entered{0};
+
+// Async-signal-safe output: write(2) only, no formatting library.
+void put(const char *s) {
+    if (!s) s = "?";
+    std::size_t n = std::strlen(s);
+    while (n > 0) {
+        const ssize_t w = ::write(STDERR_FILENO, s, n);
+        if (w <= 0) return;
+        s += w;
+        n -= static_cast<std::size_t>(w);
+    }
+}
+
+void put_int(long long v) {
+    char buf[24];
+    int i = sizeof buf;
+    buf[--i] = '\0';
+    const bool neg = v < 0;
+    unsigned long long u =
+        neg ? 0ULL - static_cast<unsigned long long>(v) : static_cast<unsigned long long>(v);
+    do {
+        buf[--i] = static_cast<char>('0' + u % 10);
+        u /= 10;
+    } while (u > 0);
+    if (neg) buf[--i] = '-';
+    put(buf + i);
+}
+
+const char *signal_text(int sig) {
+    switch (sig) {
+    case SIGSEGV: return "SIGSEGV, invalid memory access";
+    case SIGBUS: return "SIGBUS, bus error";
+    case SIGFPE: return "SIGFPE, arithmetic trap";
+    case SIGILL: return "SIGILL, illegal instruction";
+    case SIGABRT: return "SIGABRT, abort";
+    default: return "fatal signal";
+    }
+}
+
+void on_alarm(int) {
+    put("talus: the state could not be written in time after the crash\n");
+    ::_exit(128 + SIGALRM);
+}
+
+void on_fatal(int sig) {
+    if (g_entered.fetch_add(1) > 0) {
+        // A second fault: in another thread at the same time, or inside the
+        // last action. Do not report twice.
+        ::_exit(128 + sig);
+    }
+    put("talus: fatal: signal ");
+    put_int(sig);
+    put(" (");
+    put(signal_text(sig));
+    put(")");
+    if (const PluginCall *c = t_call) {
+        put(" inside the material plugin: model '");
+        put(c->model());
+        put("' from ");
+        put(c->library());
+        if (const Task *t = t_task) {
+            put(", updating material '");
+            put(t->material);
+            put("'");
+            if (t->group) {
+                put(", group '");
+                put(t->group);
+                put("'");
+            }
+            if (t->first_id >= 0) {
+                put(", particles ");
+                put_int(t->first_id);
+                if (t->last_id != t->first_id) {
+                    put("..");
+                    put_int(t->last_id);
+                }
+            }
+            if (t->step > 0) {
+                put(", in step ");
+                put_int(t->step);
+            } else {
+                put(", on the initial state");
+            }
+        }
+        put(". The plugin is at fault, not the input: run `talus plugin check` on it, or "
+            "debug it under gdb.\n");
+    } else {
+        put(" in talus itself, outside any plugin call. This is a bug in Talus; please report "
+            "it with the scenario.\n");
+    }
+    if (LastAction a = g_action.load()) {
+        std::signal(SIGALRM, on_alarm);
+        ::alarm(60);
+        a(g_action_context.load());
+        ::alarm(0);
+    }
+    ::_exit(128 + sig);
+}
+
+} // namespace
+
+PluginCall::PluginCall(const char *model, const char *library) noexcept
+    : model_(model), library_(library), saved_(t_call) {
+    t_call = this;
+}
+
+PluginCall::~PluginCall() { t_call = saved_; }
+
+TaskScope::TaskScope(const Task *task) noexcept : saved_(t_task) { t_task = task; }
+TaskScope::~TaskScope() { t_task = saved_; }
+
+void install_handlers() {
+    // An alternate stack, so that a plugin's stack overflow can still be
+    // reported (on the main thread).
+    static char stack[1 << 16];
+    stack_t ss{};
+    ss.ss_sp = stack;
+    ss.ss_size = sizeof stack;
+    ::sigaltstack(&ss, nullptr);
+    struct sigaction sa {};
+    sa.sa_handler = on_fatal;
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = SA_ONSTACK | SA_NODEFER;
+    for (int sig : {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT})
+        ::sigaction(sig, &sa, nullptr);
+}
+
+void set_last_action(LastAction action, void *context) noexcept {
+    g_action_context.store(context);
+    g_action.store(action);
+}
+
+} // namespace talus::crash

@@ -1,0 +1,9 @@
+#include <talus/material/material_spec.hpp>
+
+namespace talus {
+
+std::unique_ptr<MaterialInstance> instantiate(const MaterialSpec &spec) {
+    return spec.model->create(spec.param_values);
+}
+
+} // namespace talus

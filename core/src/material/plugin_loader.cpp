@@ -1,0 +1,563 @@
+#include <talus/material/plugin_loader.hpp>
+
+#include <talus/material/crash_report.hpp>
+#include <talus/text.hpp>
+
+#include <fmt/format.h>
+
+#include <dlfcn.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <set>
+
+#ifndef TALUS_VERSION_STRING
+#define TALUS_VERSION_STRING "0.0.0"
+#endif
+
+namespace fs = std::filesystem;
+
+namespace talus {
+
+const char *host_name() { return "talus " TALUS_VERSION_STRING; }
+
+// ------------------------------------------------------------ ParamInfo --
+
+bool ParamInfo::in_bounds(double v) const {
+    const bool lo = (flags & TALUS_PARAM_MIN_EXCLUSIVE) ? v > min_value : v >= min_value;
+    const bool hi = (flags & TALUS_PARAM_MAX_EXCLUSIVE) ? v < max_value : v <= max_value;
+    return lo && hi;
+}
+
+std::string ParamInfo::bounds_text() const {
+    const bool has_lo = std::isfinite(min_value);
+    const bool has_hi = std::isfinite(max_value);
+    const char *lo_op = (flags & TALUS_PARAM_MIN_EXCLUSIVE) ? "<" : "<=";
+    const char *hi_op = (flags & TALUS_PARAM_MAX_EXCLUSIVE) ? "<" : "<=";
+    if (type == TALUS_PARAM_BOOLEAN) return "true or false";
+    if (has_lo && has_hi)
+        return fmt::format("{:g} {} {} {} {:g}", min_value, lo_op, key, hi_op, max_value);
+    if (has_lo)
+        return fmt::format("{} {} {:g}", key,
+                           (flags & TALUS_PARAM_MIN_EXCLUSIVE) ? ">" : ">=", min_value);
+    if (has_hi) return fmt::format("{} {} {:g}", key, hi_op, max_value);
+    return "any finite value";
+}
+
+const char *ParamInfo::type_name() const {
+    switch (type) {
+    case TALUS_PARAM_INTEGER: return "integer";
+    case TALUS_PARAM_BOOLEAN: return "boolean";
+    default: return "real";
+    }
+}
+
+std::string check_parameter(const ParamInfo &p, double v) {
+    if (!std::isfinite(v)) return "expected a finite number";
+    if (p.type == TALUS_PARAM_INTEGER && v != std::floor(v)) return "expected an integer";
+    if (p.type == TALUS_PARAM_BOOLEAN && v != 0.0 && v != 1.0) return "expected true or false";
+    if (!p.in_bounds(v)) return fmt::format("expected {} (unit {})", p.bounds_text(), p.unit);
+    return {};
+}
+
+// ----------------------------------------------------- descriptor checks --
+namespace {
+
+bool is_snake_identifier(const char *s) {
+    if (!s || !(*s >= 'a' && *s <= 'z')) return false;
+    for (const char *c = s; *c; ++c)
+        if (!((*c >= 'a' && *c <= 'z') || (*c >= '0' && *c <= '9') || *c == '_')) return false;
+    return true;
+}
+
+// Keys the host owns in a material's YAML; a plugin cannot take them.
+constexpr std::string_view kReservedKeys[] = {"model", "density", "initial_state"};
+
+struct DescriptorChecker {
+    const fs::path &file;
+
+    [[noreturn]] void bad(const std::string &where, const std::string &what) const {
+        throw Error(
+            fmt::format("{}: invalid plugin descriptor: {}: {}", file.string(), where, what));
+    }
+    void need_string(const char *s, const std::string &where, const char *field) const {
+        if (!s) bad(where, fmt::format("field '{}' is null", field));
+    }
+    void need_size(std::uint32_t have, std::size_t need, const std::string &where) const {
+        if (have < need)
+            bad(where, fmt::format("struct_size {} is smaller than the {} bytes of ABI {}.0", have,
+                                   need, TALUS_ABI_VERSION_MAJOR));
+    }
+
+    ParamInfo param(const talus_param_desc *d, const std::string &where) const {
+        if (!d) bad(where, "null pointer in the params array");
+        need_size(d->struct_size, sizeof(talus_param_desc), where);
+        if (!is_snake_identifier(d->key))
+            bad(where, fmt::format("field 'key' must be lower_snake_case, got '{}'",
+                                   d->key ? d->key : "(null)"));
+        for (auto r : kReservedKeys)
+            if (r == d->key)
+                bad(where, fmt::format("field 'key': '{}' is reserved for the host", d->key));
+        need_string(d->unit, where, "unit");
+        need_string(d->doc, where, "doc");
+        if (d->type > TALUS_PARAM_BOOLEAN)
+            bad(where, fmt::format("field 'type': unknown type {}", d->type));
+        constexpr std::uint32_t known =
+            TALUS_PARAM_REQUIRED | TALUS_PARAM_MIN_EXCLUSIVE | TALUS_PARAM_MAX_EXCLUSIVE;
+        if (d->flags & ~known)
+            bad(where, fmt::format("field 'flags': unknown bits 0x{:x}", d->flags & ~known));
+        if (std::isnan(d->min_value) || std::isnan(d->max_value) || d->min_value > d->max_value)
+            bad(where,
+                fmt::format("fields 'min_value' ({}) and 'max_value' ({}) are not an interval",
+                            d->min_value, d->max_value));
+        ParamInfo p{d->key,           d->unit,      d->doc,       d->type,         d->flags,
+                    d->default_value, d->min_value, d->max_value, d->typical_value};
+        if (!p.required()) {
+            const std::string why = check_parameter(p, d->default_value);
+            if (!why.empty())
+                bad(where, fmt::format("field 'default_value' ({}) is invalid: {}",
+                                       d->default_value, why));
+        }
+        const std::string why = check_parameter(p, d->typical_value);
+        if (!why.empty())
+            bad(where,
+                fmt::format("field 'typical_value' ({}) is invalid: {}", d->typical_value, why));
+        return p;
+    }
+
+    StateInfo state(const talus_state_desc *d, const std::string &where) const {
+        if (!d) bad(where, "null pointer in the state array");
+        need_size(d->struct_size, sizeof(talus_state_desc), where);
+        if (!is_snake_identifier(d->name))
+            bad(where, fmt::format("field 'name' must be lower_snake_case, got '{}'",
+                                   d->name ? d->name : "(null)"));
+        need_string(d->unit, where, "unit");
+        need_string(d->doc, where, "doc");
+        if (d->size == 0 || d->size > 81)
+            bad(where, fmt::format("field 'size' is {}, expected 1..81", d->size));
+        constexpr std::uint32_t known = TALUS_STATE_OUTPUT | TALUS_STATE_USER_INIT;
+        if (d->flags & ~known)
+            bad(where, fmt::format("field 'flags': unknown bits 0x{:x}", d->flags & ~known));
+        if (!std::isfinite(d->initial_value))
+            bad(where, fmt::format("field 'initial_value' is not finite ({})", d->initial_value));
+        return StateInfo{d->name, d->unit, d->doc, d->size, d->flags, d->initial_value, 0};
+    }
+};
+
+std::string read_message(const talus_error &e) {
+    // The plugin may have filled the whole buffer without a NUL.
+    return std::string(e.message, strnlen(e.message, sizeof(e.message)));
+}
+
+talus_error fresh_error() {
+    talus_error e{};
+    e.struct_size = sizeof(talus_error);
+    e.point_index = -1;
+    e.cut_factor = 1.0;
+    return e;
+}
+
+} // namespace
+
+// -------------------------------------------------------- PluginLibrary --
+
+namespace {
+
+// The SDK's build string in the library file (TALUS_SDK_BUILD_INFO).
+PluginLibrary::Build read_build_info(const fs::path &file) {
+    PluginLibrary::Build b;
+    std::ifstream in(file, std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string key = "TALUS_BUILD_INFO optimised=";
+    const auto at = bytes.find(key);
+    if (at == std::string::npos || at + key.size() + 11 > bytes.size()) return b;
+    const std::string rest = bytes.substr(at + key.size(), 11); // "1 asserts=0"
+    if (rest.compare(1, 9, " asserts=") != 0) return b;
+    b.known = true;
+    b.optimised = rest[0] == '1';
+    b.asserts = rest[10] == '1';
+    return b;
+}
+
+} // namespace
+
+std::string PluginLibrary::build_text() const {
+    if (!build_.known) return "unknown (not built with the Talus SDK's TALUS_MATERIAL_LIBRARY)";
+    return fmt::format("{}, assertions {}{}",
+                       build_.optimised ? "optimised" : "NOT optimised (-O0)",
+                       build_.asserts ? "on" : "off",
+                       build_.optimised ? ""
+                                        : ": expect it to run about ten times slower; rebuild it "
+                                          "with CMAKE_BUILD_TYPE=Release");
+}
+
+std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
+    std::error_code ec;
+    if (!fs::exists(file, ec))
+        throw Error(fmt::format("{}: plugin library not found", file.string()));
+    // RTLD_NOW: an unresolved symbol is reported here rather than mid-run.
+    // RTLD_LOCAL: two plugins never see each other's symbols.
+    void *handle = dlopen(file.c_str(), RTLD_NOW | RTLD_LOCAL);
+    if (!handle) {
+        const char *why = dlerror();
+        throw Error(fmt::format("{}: not a loadable shared library: {}", file.string(),
+                                why ? why : "unknown dlopen error"));
+    }
+    std::shared_ptr<PluginLibrary> lib(new PluginLibrary());
+    lib->handle_ = handle;
+    lib->path_ = file;
+    lib->build_ = read_build_info(file);
+
+    dlerror();
+    void *sym = dlsym(handle, TALUS_MATERIAL_ENTRY_SYMBOL);
+    if (!sym)
+        throw Error(fmt::format(
+            "{}: no exported symbol '{}': this is not a Talus material plugin (a plugin defines it "
+            "with TALUS_MATERIAL_LIBRARY, or by hand with TALUS_PLUGIN_EXPORT)",
+            file.string(), TALUS_MATERIAL_ENTRY_SYMBOL));
+    auto entry = reinterpret_cast<talus_material_entry_fn>(sym);
+
+    talus_host_info host{};
+    host.struct_size = sizeof(host);
+    host.abi_major = TALUS_ABI_VERSION_MAJOR;
+    host.abi_minor = TALUS_ABI_VERSION_MINOR;
+    host.host_name = host_name();
+    const talus_library *desc = nullptr;
+    talus_error err = fresh_error();
+    std::int32_t status = TALUS_STATUS_FAILED;
+    try {
+        const crash::PluginCall call("(its entry point)", file.c_str());
+        status = entry(&host, &desc, &err);
+    } catch (...) {
+        throw Error(
+            fmt::format("{}: the entry point threw an exception across the C ABI", file.string()));
+    }
+    if (status != TALUS_STATUS_OK)
+        throw Error(fmt::format("{}: the plugin refused to load (host speaks ABI {}.{}): {}",
+                                file.string(), TALUS_ABI_VERSION_MAJOR, TALUS_ABI_VERSION_MINOR,
+                                read_message(err)));
+    DescriptorChecker chk{file};
+    if (!desc) chk.bad("library", "the entry point returned OK but no library descriptor");
+    // Read the version first: a library of another major may lay out even
+    // the library structure differently, so nothing else is trusted before.
+    if (desc->struct_size < offsetof(talus_library, n_models))
+        chk.bad("library", fmt::format("struct_size {} is too small", desc->struct_size));
+    if (desc->abi_major != TALUS_ABI_VERSION_MAJOR)
+        throw Error(fmt::format("{}: ABI major version mismatch: the plugin was built for Talus "
+                                "material ABI {}.{}, this host speaks ABI {}.{}; rebuild the "
+                                "plugin against this host's SDK",
+                                file.string(), desc->abi_major, desc->abi_minor,
+                                TALUS_ABI_VERSION_MAJOR, TALUS_ABI_VERSION_MINOR));
+    chk.need_size(desc->struct_size, sizeof(talus_library), "library");
+    chk.need_string(desc->name, "library", "name");
+    chk.need_string(desc->version, "library", "version");
+    if (desc->n_models == 0)
+        chk.bad("library", "field 'n_models' is 0: the library offers no model");
+    if (!desc->models) chk.bad("library", "field 'models' is null");
+    lib->name_ = desc->name;
+    lib->version_ = desc->version;
+    lib->abi_major_ = desc->abi_major;
+    lib->abi_minor_ = desc->abi_minor;
+
+    std::set<std::string> ids;
+    for (std::uint32_t m = 0; m < desc->n_models; ++m) {
+        const talus_model *md = desc->models[m];
+        std::string where = fmt::format("model #{}", m);
+        if (!md) chk.bad(where, "null pointer in the models array");
+        chk.need_size(md->struct_size, sizeof(talus_model), where);
+        if (!is_snake_identifier(md->id))
+            chk.bad(where, fmt::format("field 'id' must be lower_snake_case, got '{}'",
+                                       md->id ? md->id : "(null)"));
+        where = fmt::format("model '{}'", md->id);
+        if (!ids.insert(md->id).second) chk.bad(where, "the id appears twice in this library");
+        chk.need_string(md->name, where, "name");
+        chk.need_string(md->version, where, "version");
+        chk.need_string(md->doc, where, "doc");
+        if (!md->create) chk.bad(where, "field 'create' is null");
+        if (!md->destroy) chk.bad(where, "field 'destroy' is null");
+        if (!md->update) chk.bad(where, "field 'update' is null");
+        constexpr std::uint32_t known = TALUS_MODEL_FINITE_STRAIN | TALUS_MODEL_TANGENT;
+        if (md->flags & ~known)
+            chk.bad(where, fmt::format("field 'flags': unknown bits 0x{:x}", md->flags & ~known));
+        if (md->n_params > 0 && !md->params) chk.bad(where, "field 'params' is null");
+        if (md->n_state > 0 && !md->state) chk.bad(where, "field 'state' is null");
+
+        Model model;
+        model.raw_ = md;
+        model.library_ = lib.get();
+        model.id_ = md->id;
+        model.name_ = md->name;
+        model.version_ = md->version;
+        model.doc_ = md->doc;
+        std::set<std::string> keys;
+        for (std::uint32_t i = 0; i < md->n_params; ++i) {
+            const std::string pw = fmt::format("{} parameter #{}", where, i);
+            ParamInfo p = chk.param(md->params[i], pw);
+            if (!keys.insert(p.key).second)
+                chk.bad(pw, fmt::format("key '{}' appears twice", p.key));
+            model.params_.push_back(std::move(p));
+        }
+        std::set<std::string> names;
+        for (std::uint32_t i = 0; i < md->n_state; ++i) {
+            const std::string sw = fmt::format("{} state variable #{}", where, i);
+            StateInfo s = chk.state(md->state[i], sw);
+            if (!names.insert(s.name).second)
+                chk.bad(sw, fmt::format("name '{}' appears twice", s.name));
+            s.offset = model.state_size_;
+            model.state_size_ += s.size;
+            model.state_.push_back(std::move(s));
+        }
+        lib->models_.push_back(std::move(model));
+    }
+    return lib;
+}
+
+PluginLibrary::~PluginLibrary() {
+    if (handle_) dlclose(handle_);
+}
+
+const Model *PluginLibrary::find(const std::string &id) const {
+    for (const Model &m : models_)
+        if (m.id() == id) return &m;
+    return nullptr;
+}
+
+// ---------------------------------------------------------------- Model --
+
+std::vector<double> Model::initial_state() const {
+    std::vector<double> s(state_size_);
+    for (const StateInfo &v : state_)
+        std::fill_n(s.begin() + v.offset, v.size, v.initial_value);
+    return s;
+}
+
+std::unique_ptr<MaterialInstance> Model::create(std::span<const double> values) const {
+    if (values.size() != params_.size())
+        throw Error(fmt::format("model '{}': {} parameter values given, {} expected", id_,
+                                values.size(), params_.size()));
+    talus_error err = fresh_error();
+    talus_instance *inst = nullptr;
+    std::int32_t status = TALUS_STATUS_FAILED;
+    try {
+        const crash::PluginCall call(id_.c_str(), library_->path().c_str());
+        status =
+            raw_->create(values.data(), static_cast<std::uint32_t>(values.size()), &inst, &err);
+    } catch (...) {
+        throw Error(fmt::format("model '{}' ({}): create threw an exception across the C ABI", id_,
+                                library_->path().string()));
+    }
+    if (status != TALUS_STATUS_OK || !inst)
+        throw Error(fmt::format("model '{}' rejected its parameters: {}", id_,
+                                status == TALUS_STATUS_OK ? "create returned no instance"
+                                                          : read_message(err)));
+    std::unique_ptr<MaterialInstance> out(new MaterialInstance());
+    out->model_ = this;
+    out->library_ = library_->shared_from_this();
+    out->instance_ = inst;
+    return out;
+}
+
+// ------------------------------------------------------ MaterialInstance --
+
+MaterialInstance::~MaterialInstance() {
+    if (instance_) {
+        const crash::PluginCall call(model_->id().c_str(), library_->path().c_str());
+        model_->raw().destroy(instance_);
+    }
+}
+
+MaterialInstance::Result MaterialInstance::update(talus_batch &b) const noexcept {
+    Result r;
+    b.struct_size = sizeof(talus_batch);
+    b.state_size = model_->state_size();
+    talus_error err = fresh_error();
+    try {
+        const crash::PluginCall call(model_->id().c_str(), library_->path().c_str());
+        r.status = model_->raw().update(instance_, &b, &err);
+    } catch (...) {
+        r.status = TALUS_STATUS_FAILED;
+        r.message = "an exception escaped the plugin's update across the C ABI";
+        return r;
+    }
+    if (r.status != TALUS_STATUS_OK) {
+        if (r.status != TALUS_STATUS_FAILED && r.status != TALUS_STATUS_CUT_STEP) {
+            r.message = fmt::format("update returned the unknown status {}", r.status);
+            r.status = TALUS_STATUS_FAILED;
+            return r;
+        }
+        r.point = err.point_index;
+        r.cut_factor = err.cut_factor;
+        r.message = read_message(err);
+        if (r.message.empty()) r.message = "update failed without a message";
+        if (r.status == TALUS_STATUS_CUT_STEP && !(r.cut_factor > 0.0 && r.cut_factor < 1.0)) {
+            r.message = fmt::format("cut-step request with an invalid factor {} (expected 0 < "
+                                    "factor < 1): {}",
+                                    r.cut_factor, r.message);
+            r.status = TALUS_STATUS_FAILED;
+        }
+        return r;
+    }
+    // The host never trusts outputs blindly: a NaN that entered the solver
+    // would spread silently through the grid. x * 0 is NaN exactly for NaN
+    // and infinities, so one branch-free sum screens the whole batch; the
+    // point is looked for only when it trips.
+    const std::size_t n = b.n_points, ns = b.state_size;
+    const bool want_c = (b.flags & TALUS_BATCH_WANT_WAVE_SPEED) != 0;
+    const bool want_t = (b.flags & TALUS_BATCH_WANT_TANGENT) != 0;
+    auto probe = [](const double *p, std::size_t count) {
+        double acc = 0.0;
+        for (std::size_t k = 0; k < count; ++k)
+            acc += p[k] * 0.0;
+        return acc;
+    };
+    double screen = probe(b.stress_end, 6 * n) + (ns ? probe(b.state_end, ns * n) : 0.0) +
+                    (want_t ? probe(b.tangent, 36 * n) : 0.0);
+    bool speeds_ok = true;
+    if (want_c)
+        for (std::size_t i = 0; i < n; ++i)
+            speeds_ok &= b.wave_speed[i] > 0.0 && b.wave_speed[i] < INFINITY;
+    if (screen == 0.0 && speeds_ok) return r;
+    for (std::size_t i = 0; i < n; ++i) {
+        const bool bad_c = want_c && !(b.wave_speed[i] > 0.0 && b.wave_speed[i] < INFINITY);
+        const bool bad = probe(b.stress_end + 6 * i, 6) != 0.0 ||
+                         (ns && probe(b.state_end + ns * i, ns) != 0.0) ||
+                         (want_t && probe(b.tangent + 36 * i, 36) != 0.0) || bad_c;
+        if (!bad) continue;
+        r.status = TALUS_STATUS_FAILED;
+        r.host_detected = true;
+        r.point = static_cast<std::int64_t>(i);
+        r.message =
+            fmt::format("returned status OK but a non-finite {} at point {}",
+                        bad_c ? "or non-positive wave speed" : "stress, state or tangent", i);
+        return r;
+    }
+    return r;
+}
+
+// ------------------------------------------------------- PluginRegistry --
+
+PluginRegistry::PluginRegistry(std::vector<fs::path> plugin_path, bool use_environment)
+    : extra_(std::move(plugin_path)), use_env_(use_environment) {}
+
+namespace {
+fs::path executable_dir() {
+    std::error_code ec;
+    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+    return ec ? fs::path() : exe.parent_path();
+}
+} // namespace
+
+std::vector<fs::path> PluginRegistry::search_dirs() const {
+    std::vector<fs::path> dirs = extra_;
+    if (use_env_) {
+        if (const char *env = std::getenv("TALUS_PLUGIN_PATH")) {
+            std::string_view s(env);
+            while (!s.empty()) {
+                const auto colon = s.find(':');
+                const std::string_view part = s.substr(0, colon);
+                if (!part.empty()) dirs.emplace_back(std::string(part));
+                if (colon == std::string_view::npos) break;
+                s.remove_prefix(colon + 1);
+            }
+        }
+    }
+    // The shipped plugins, found relative to the running executable so that
+    // both a build tree (bin/ beside plugins/) and an installed, possibly
+    // moved, tree (bin/ beside lib/talus/plugins/) work without settings.
+    if (const fs::path exe = executable_dir(); !exe.empty()) {
+        dirs.push_back(exe.parent_path() / "plugins");
+#ifdef TALUS_INSTALL_PLUGIN_SUBDIR
+        dirs.push_back(exe.parent_path() / TALUS_INSTALL_PLUGIN_SUBDIR);
+#endif
+    }
+    return dirs;
+}
+
+const PluginLibrary &PluginRegistry::add(const fs::path &file) {
+    std::error_code ec;
+    const fs::path canon = fs::weakly_canonical(file, ec);
+    for (const auto &lib : libraries_)
+        if (lib->path() == canon) return *lib;
+    std::shared_ptr<PluginLibrary> lib = PluginLibrary::open(canon);
+    for (const Model &m : lib->models())
+        for (const auto &other : libraries_)
+            if (other->find(m.id()))
+                throw Error(
+                    fmt::format("duplicate model id '{}': offered by both {} and {}; remove "
+                                "one of them from the plugin search path",
+                                m.id(), other->path().string(), canon.string()));
+    libraries_.push_back(std::move(lib));
+    return *libraries_.back();
+}
+
+const PluginLibrary &PluginRegistry::load(const std::string &name_or_path) {
+    const bool explicit_path =
+        name_or_path.find('/') != std::string::npos ||
+        (name_or_path.size() > 3 && name_or_path.compare(name_or_path.size() - 3, 3, ".so") == 0 &&
+         fs::exists(name_or_path));
+    if (explicit_path) {
+        if (!fs::exists(name_or_path))
+            throw Error(fmt::format("{}: plugin library not found", name_or_path));
+        return add(name_or_path);
+    }
+    const std::vector<std::string> names = {name_or_path, "talus_" + name_or_path + ".so",
+                                            name_or_path + ".so"};
+    std::string tried;
+    for (const fs::path &dir : search_dirs())
+        for (const std::string &n : names) {
+            const fs::path f = dir / n;
+            std::error_code ec;
+            if (fs::is_regular_file(f, ec)) return add(f);
+            tried += "\n  " + f.string();
+        }
+    throw Error(fmt::format("plugin library '{}' not found; looked for:{}\n(add a directory with "
+                            "--plugin-path or the TALUS_PLUGIN_PATH environment variable)",
+                            name_or_path, tried));
+}
+
+void PluginRegistry::load_all() {
+    std::set<std::string> seen_names;
+    for (const fs::path &dir : search_dirs()) {
+        std::error_code ec;
+        if (!fs::is_directory(dir, ec)) continue;
+        std::vector<fs::path> files;
+        for (const auto &e : fs::directory_iterator(dir, ec)) {
+            const std::string fn = e.path().filename().string();
+            if (fn.rfind("talus_", 0) == 0 && e.path().extension() == ".so")
+                files.push_back(e.path());
+        }
+        std::sort(files.begin(), files.end()); // deterministic order
+        for (const fs::path &f : files)
+            if (seen_names.insert(f.filename().string()).second) add(f);
+    }
+}
+
+const Model &PluginRegistry::find_model(const std::string &id) {
+    for (const auto &lib : libraries_)
+        if (const Model *m = lib->find(id)) return *m;
+    load_all();
+    std::vector<std::string> known;
+    for (const auto &lib : libraries_) {
+        if (const Model *m = lib->find(id)) return *m;
+        for (const Model &m : lib->models())
+            known.push_back(m.id());
+    }
+    std::string dirs;
+    for (const fs::path &d : search_dirs())
+        dirs += "\n  " + d.string();
+    const std::string guess = closest_match(id, std::span<const std::string>(known));
+    std::string list;
+    for (const auto &k : known)
+        list += (list.empty() ? "" : ", ") + k;
+    throw Error(fmt::format("no plugin offers the material model '{}'{}; models found: {}; plugin "
+                            "directories searched:{}",
+                            id, guess.empty() ? "" : fmt::format(" (did you mean '{}'?)", guess),
+                            list.empty() ? "none" : list, dirs));
+}
+
+} // namespace talus

@@ -1,0 +1,98 @@
+#include "boundary.hpp"
+
+#include "parallel.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace talus {
+
+Boundary::Boundary(const Scenario &sc, const Grid &grid) : dim_(sc.dim), faces_(sc.faces) {
+    for (const NodalVelocity &nv : sc.nodal_velocities) {
+        Prescribed p{{}, nv.velocity};
+        // A node stands for its Greville point (clamped B-splines).
+        for (std::size_t i = 0; i < grid.n_nodes; ++i) {
+            const std::array<double, 3> x = grid.node_point(i, sc.solver.shape);
+            if (nv.box.contains(x.data(), dim_)) p.nodes.push_back(static_cast<std::uint32_t>(i));
+        }
+        if (p.nodes.empty())
+            throw Error(nv.origin.error(fmt::format(
+                "the box holds no grid node (nodes are {:g} m apart{}); enlarge the box",
+                grid.geo.h,
+                face_layer(sc.solver.shape) > 0 ? ", at their Greville points near a face" : "")));
+        prescribed_.push_back(std::move(p));
+    }
+    for (const ParticleVelocity &pv : sc.particle_velocities)
+        fixities_.push_back(pv.velocity);
+}
+
+// Contact (slip, friction) is unilateral: a node moving away from the wall
+// is left alone; one moving into it loses its normal velocity and, with
+// Coulomb friction, its tangential speed is reduced by mu times the normal
+// speed removed (a velocity projection of the impulse).
+void Boundary::apply(const Grid &grid, double *field, std::size_t offset, const double *fixity,
+                     double t) const {
+    auto V = [&](std::size_t i) { return field + node::kRecord * i + offset; };
+    for (int f = 0; f < 2 * dim_; ++f) {
+        const FaceCondition &fc = faces_[static_cast<std::size_t>(f)];
+        if (fc.type == FaceType::free) continue;
+        const std::size_t axis = static_cast<std::size_t>(f / 2);
+        const double sign = (f % 2 == 0) ? -1.0 : 1.0; // outward normal
+        for (std::uint32_t i : grid.face_nodes[static_cast<std::size_t>(f)]) {
+            double *v = V(i);
+            if (fc.type == FaceType::fixed) {
+                for (int d = 0; d < dim_; ++d)
+                    v[d] = 0.0;
+            } else if (fc.type == FaceType::roller) {
+                v[axis] = 0.0;
+            } else {
+                const double vn = sign * v[axis];
+                if (vn <= 0.0) continue; // separating: no contact
+                v[axis] = 0.0;
+                if (fc.friction == 0.0) continue;
+                double vt2 = 0.0;
+                for (int d = 0; d < dim_; ++d)
+                    if (static_cast<std::size_t>(d) != axis) vt2 += v[d] * v[d];
+                const double vt = std::sqrt(vt2);
+                const double scale = vt > 0.0 ? std::max(0.0, 1.0 - fc.friction * vn / vt) : 0.0;
+                for (int d = 0; d < dim_; ++d)
+                    if (static_cast<std::size_t>(d) != axis) v[d] *= scale;
+            }
+        }
+    }
+    for (const Prescribed &p : prescribed_)
+        for (int d = 0; d < dim_; ++d)
+            if (const auto &fn = p.velocity.c[static_cast<std::size_t>(d)]) {
+                const double v = (*fn)(t);
+                for (std::uint32_t i : p.nodes)
+                    V(i)[d] = v;
+            }
+    // Particle fixities act on the grid too: every node a fixed particle
+    // reaches moves as prescribed, so the body attached to those particles
+    // is held through the grid (a fixity on the particles alone would keep
+    // them in place while the grid, and the rest of the body, moved on).
+    // The constrained zone is the fixed particles plus one kernel support.
+    if (fixities_.empty()) return;
+    double value[kMaxLoads][3] = {};
+    bool on[kMaxLoads][3] = {};
+    for (std::size_t k = 0; k < fixities_.size(); ++k)
+        for (int d = 0; d < dim_; ++d)
+            if (const auto &fn = fixities_[k].c[static_cast<std::size_t>(d)]) {
+                value[k][d] = (*fn)(t);
+                on[k][d] = true;
+            }
+    const int D = dim_;
+    par::for_each(grid.n_nodes, [&](std::size_t i) {
+        std::uint32_t mask = static_cast<std::uint32_t>(fixity[node::kRecord * i + node::kFixity]);
+        while (mask) {
+            const std::size_t k = static_cast<std::size_t>(__builtin_ctz(mask));
+            mask &= mask - 1;
+            for (int d = 0; d < D; ++d)
+                if (on[k][d]) V(i)[d] = value[k][d];
+        }
+    });
+}
+
+} // namespace talus

@@ -1,0 +1,52 @@
+// Boundary conditions on a nodal velocity field (seed 004 step 2.4): the
+// faces' conditions, prescribed nodal velocities in boxes, and the grid
+// side of particle velocity fixities.
+#pragma once
+
+#include "grid.hpp"
+
+#include <talus/mpm/scenario.hpp>
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+namespace talus {
+
+class Boundary {
+  public:
+    // Finds the nodes of each prescribed-velocity box; throws (at the
+    // entry's place in the file) if a box holds none.
+    Boundary(const Scenario &sc, const Grid &grid);
+
+    // Applies every condition at time t to the velocity at `offset` of the
+    // node records `field` (Grid::vel at node::kVelocity or kEndVelocity,
+    // or another field laid out the same way). `fixity` is Grid::acc: its
+    // node::kFixity slot says which fixities reach a node.
+    void apply(const Grid &grid, double *field, std::size_t offset, const double *fixity,
+               double t) const;
+    // Calls f(slot) for every node a face condition or a prescribed velocity
+    // may change (fixity nodes excluded), some more than once.
+    template <class F>
+    void for_each_constrained_node(const Grid &grid, F &&f) const {
+        for (int face = 0; face < 6; ++face)
+            if (faces_[static_cast<std::size_t>(face)].type != FaceType::free)
+                for (std::uint32_t i : grid.face_nodes[static_cast<std::size_t>(face)])
+                    f(i);
+        for (const Prescribed &p : prescribed_)
+            for (std::uint32_t i : p.nodes)
+                f(i);
+    }
+
+  private:
+    struct Prescribed {
+        std::vector<std::uint32_t> nodes;
+        ComponentFunctions velocity;
+    };
+    int dim_;
+    std::array<FaceCondition, 6> faces_;
+    std::vector<Prescribed> prescribed_;
+    std::vector<ComponentFunctions> fixities_;
+};
+
+} // namespace talus

@@ -1,0 +1,104 @@
+#include "grid.hpp"
+
+#include "parallel.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace talus {
+
+std::array<int, 3> GridGeometry::global(std::size_t slot) const {
+    const std::size_t ex = static_cast<std::size_t>(extent[0]);
+    const std::size_t ey = static_cast<std::size_t>(extent[1]);
+    return {static_cast<int>(slot % ex) + first[0], static_cast<int>((slot / ex) % ey) + first[1],
+            static_cast<int>(slot / (ex * ey)) + first[2]};
+}
+
+int GridGeometry::cell(int d, double x) const {
+    const std::size_t dd = static_cast<std::size_t>(d);
+    const int c = static_cast<int>(fast_floor((x - origin[dd]) * inv_h));
+    return std::clamp(c, 0, cells[dd] - 1);
+}
+
+std::size_t GridGeometry::cell_index(const double *x) const {
+    std::size_t idx = 0, stride = 1;
+    for (int d = 0; d < dim; ++d) {
+        idx += static_cast<std::size_t>(cell(d, x[d])) * stride;
+        stride *= static_cast<std::size_t>(cells[static_cast<std::size_t>(d)]);
+    }
+    return idx;
+}
+
+Grid::Grid(int dim, const std::array<double, 3> &origin, const std::array<double, 3> &size,
+           double h, ShapeKind shape) {
+    geo.dim = dim;
+    geo.h = h;
+    geo.inv_h = 1.0 / h;
+    geo.origin = origin;
+    n_nodes = 1;
+    n_cells = 1;
+    for (std::size_t d = 0; d < 3; ++d) {
+        if (static_cast<int>(d) < dim) {
+            geo.cells[d] = static_cast<int>(std::lround(size[d] / h));
+            geo.first[d] = -kGhostLayers;
+            geo.extent[d] = geo.cells[d] + 1 + 2 * kGhostLayers;
+        } else {
+            geo.cells[d] = 1;
+            geo.first[d] = 0;
+            geo.extent[d] = 1;
+        }
+        n_nodes *= static_cast<std::size_t>(geo.extent[d]);
+        n_cells *= static_cast<std::size_t>(geo.cells[d]);
+    }
+    acc.assign(node::kRecord * n_nodes, 0.0);
+    vel.assign(node::kRecord * n_nodes, 0.0);
+    // Sum over the stencil of w (x_i - x_p)(x_i - x_p)^T is h^2/4 I for the
+    // quadratic and h^2/3 I for the cubic B-spline (Jiang et al. 2015).
+    if (shape == ShapeKind::bspline2) geo.affine_dinv = 4.0 / (h * h);
+    if (shape == ShapeKind::bspline3) geo.affine_dinv = 3.0 / (h * h);
+    // The nodes whose functions are non-zero at a face, and those beyond,
+    // carry that face's condition: for the clamped B-splines the layer just
+    // outside the face (the node on the face has a function vanishing there
+    // and stays free), for the tent-based kernels the face node and beyond.
+    const int layer = face_layer(shape);
+    for (std::size_t i = 0; i < n_nodes; ++i) {
+        const std::array<int, 3> ijk = geo.global(i);
+        for (std::size_t d = 0; d < static_cast<std::size_t>(dim); ++d) {
+            if (ijk[d] <= -layer) face_nodes[2 * d].push_back(static_cast<std::uint32_t>(i));
+            if (ijk[d] >= geo.cells[d] + layer)
+                face_nodes[2 * d + 1].push_back(static_cast<std::uint32_t>(i));
+        }
+    }
+}
+
+void Grid::reset() {
+    // Parallel: on a large grid this is tens of megabytes every step.
+    const std::size_t chunks = 64, len = acc.size();
+    par::for_each(chunks, [&](std::size_t c) {
+        std::fill(acc.begin() + static_cast<std::ptrdiff_t>(len * c / chunks),
+                  acc.begin() + static_cast<std::ptrdiff_t>(len * (c + 1) / chunks), 0.0);
+    });
+}
+
+void Grid::clear_momentum() {
+    for (std::size_t i = 0; i < n_nodes; ++i)
+        for (std::size_t d = 0; d < static_cast<std::size_t>(geo.dim); ++d)
+            acc[node::kRecord * i + node::kMomentum + d] = 0.0;
+}
+
+double Grid::mass() const {
+    double m = 0.0;
+    for (std::size_t i = 0; i < n_nodes; ++i)
+        m += acc[node::kRecord * i + node::kMass];
+    return m;
+}
+
+std::array<double, 3> Grid::node_point(std::size_t slot, ShapeKind shape) const {
+    const std::array<int, 3> ijk = geo.global(slot);
+    std::array<double, 3> x{0, 0, 0};
+    for (std::size_t d = 0; d < static_cast<std::size_t>(geo.dim); ++d)
+        x[d] = geo.origin[d] + node_greville(shape, ijk[d], geo.cells[d]) * geo.h;
+    return x;
+}
+
+} // namespace talus

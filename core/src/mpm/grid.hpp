@@ -1,0 +1,80 @@
+// The background grid: a Cartesian lattice of spacing h from `origin`, of
+// which this process holds a local index box (ghost layers included). Nodes
+// are numbered globally from the domain's first node (0 at the origin,
+// negative in the ghost layers below it); a kernel turns a global node
+// number into a slot of the local records with local(), never assuming the
+// box starts at the domain: an MPI rank will hold only its own part.
+#pragma once
+
+#include <talus/mpm/shape_functions.hpp>
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace talus {
+
+// Fields of a node record: 8 doubles (one cache line), so that a particle's
+// scatter touches one line per node, not one per field.
+namespace node {
+inline constexpr std::size_t kRecord = 8;
+// The P2G accumulators (Grid::acc): mass, momentum, force, and in [7] bit k
+// set when a particle of particle_velocities[k] reaches the node (exact in
+// a double: 32 bits).
+inline constexpr std::size_t kMass = 0, kMomentum = 1, kForce = 4, kFixity = 7;
+// The velocities (Grid::vel): v at the start of the step, v~ at its end.
+inline constexpr std::size_t kVelocity = 0, kEndVelocity = 4;
+} // namespace node
+
+// What a kernel needs to find a particle's nodes: plain values, copied
+// into the kernel's registers.
+struct GridGeometry {
+    int dim = 2;
+    double h = 1.0, inv_h = 1.0;
+    std::array<double, 3> origin{0, 0, 0};
+    // Cells of the whole domain per axis: where the clamped kernels' faces are.
+    std::array<int, 3> cells{1, 1, 1};
+    // The local box: its first global node per axis and nodes per axis.
+    std::array<int, 3> first{0, 0, 0}, extent{1, 1, 1};
+    // D_p^-1 of APIC away from the faces for the B-splines, 1/m^2 (0 for
+    // the tent-based kernels, whose affine matrix is the gradient).
+    double affine_dinv = 0.0;
+
+    std::size_t local(int i, int j, int k) const {
+        return static_cast<std::size_t>(i - first[0]) +
+               static_cast<std::size_t>(extent[0]) *
+                   (static_cast<std::size_t>(j - first[1]) +
+                    static_cast<std::size_t>(extent[1]) * static_cast<std::size_t>(k - first[2]));
+    }
+    // Global node numbers (i, j, k) of a local slot.
+    std::array<int, 3> global(std::size_t slot) const;
+    // Cell of a coordinate along axis d, clamped into the domain.
+    int cell(int d, double x) const;
+    // Cell number (in the domain's cell order) of a position.
+    std::size_t cell_index(const double *x) const;
+};
+
+struct Grid {
+    GridGeometry geo;
+    std::size_t n_nodes = 0, n_cells = 0;
+    std::vector<double> acc, vel; // node records, see node::
+    // Local slots of the nodes on or beyond each face (x-, x+, y-, y+, z-,
+    // z+) that carry the face's condition (face_layer of the kernel).
+    std::array<std::vector<std::uint32_t>, 6> face_nodes;
+
+    // The domain [origin, origin + cells h] with kGhostLayers around it.
+    Grid(int dim, const std::array<double, 3> &origin, const std::array<double, 3> &size, double h,
+         ShapeKind shape);
+    // Clears the P2G accumulators.
+    void reset();
+    // Clears the momentum slots alone (before MUSL's remap).
+    void clear_momentum();
+    // Total nodal mass.
+    double mass() const;
+    // Position of a node's Greville point, the point it stands for (the
+    // clamped B-splines' nodes near a face sit between lattice points).
+    std::array<double, 3> node_point(std::size_t slot, ShapeKind shape) const;
+};
+
+} // namespace talus

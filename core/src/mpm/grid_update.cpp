@@ -1,0 +1,71 @@
+#include "grid_update.hpp"
+
+#include "parallel.hpp"
+
+namespace talus {
+
+using node::kRecord;
+
+namespace {
+
+template <bool Update>
+void velocities(Grid &grid, const Boundary &bc, double t, double dt) {
+    double *a = grid.acc.data(), *v = grid.vel.data();
+    const int D = grid.geo.dim;
+    // v = p / m everywhere and, when updating, v~ = v + dt f / m in the same
+    // pass; the constrained nodes are then redone in order (conditions on v,
+    // v~ from the constrained v, conditions on v~), which matters for
+    // friction, where v~'s approach speed depends on the constrained v.
+    par::for_each(grid.n_nodes, [&](std::size_t i) {
+        const double m = a[kRecord * i + node::kMass];
+        const double inv = m > 0.0 ? 1.0 / m : 0.0;
+        for (std::size_t d = 0; d < static_cast<std::size_t>(D); ++d) {
+            const double v0 = a[kRecord * i + node::kMomentum + d] * inv;
+            v[kRecord * i + node::kVelocity + d] = v0;
+            if constexpr (Update)
+                v[kRecord * i + node::kEndVelocity + d] =
+                    v0 + dt * a[kRecord * i + node::kForce + d] * inv;
+        }
+    });
+    bc.apply(grid, v, node::kVelocity, a, t);
+    if constexpr (!Update) return;
+    bc.for_each_constrained_node(grid, [&](std::size_t i) {
+        const double m = a[kRecord * i + node::kMass];
+        const double inv = m > 0.0 ? 1.0 / m : 0.0;
+        for (std::size_t d = 0; d < static_cast<std::size_t>(D); ++d)
+            v[kRecord * i + node::kEndVelocity + d] =
+                v[kRecord * i + node::kVelocity + d] + dt * a[kRecord * i + node::kForce + d] * inv;
+    });
+    bc.apply(grid, v, node::kEndVelocity, a, t + dt);
+}
+
+} // namespace
+
+void grid_velocity(Grid &grid, const Boundary &bc, double t) {
+    velocities<false>(grid, bc, t, 0.0);
+}
+
+void grid_update(Grid &grid, const Boundary &bc, double t, double dt) {
+    velocities<true>(grid, bc, t, dt);
+}
+
+void remapped_velocity(Grid &grid, const Boundary &bc, double t_end, bool mean) {
+    double *a = grid.acc.data();
+    const double *v = grid.vel.data();
+    const std::size_t D = static_cast<std::size_t>(grid.geo.dim);
+    for (std::size_t i = 0; i < grid.n_nodes; ++i) {
+        const double m = a[kRecord * i + node::kMass];
+        for (std::size_t d = 0; d < D; ++d)
+            a[kRecord * i + node::kForce + d] =
+                m > 0.0 ? a[kRecord * i + node::kMomentum + d] / m : 0.0;
+    }
+    bc.apply(grid, a, node::kForce, a, t_end);
+    if (mean)
+        for (std::size_t i = 0; i < grid.n_nodes; ++i)
+            for (std::size_t d = 0; d < D; ++d) {
+                const std::size_t k = kRecord * i + d;
+                a[k + node::kMomentum] = 0.5 * (v[k + node::kVelocity] + a[k + node::kForce]);
+            }
+}
+
+} // namespace talus

@@ -1,0 +1,21 @@
+// Phase 2 of the cycle (seed 000): the grid update.
+#pragma once
+
+#include "boundary.hpp"
+#include "grid.hpp"
+
+namespace talus {
+
+// v = p / m (eq. 30) with the boundary conditions at t, into
+// Grid::vel[node::kVelocity].
+void grid_velocity(Grid &grid, const Boundary &bc, double t);
+// v as above, and v~ = v + dt f / m (eqs. 31-32) with the conditions at
+// t + dt into Grid::vel[node::kEndVelocity].
+void grid_update(Grid &grid, const Boundary &bc, double t, double dt);
+// MUSL: the remapped velocity v_R = p_R / m with the conditions at t_end,
+// written over the force slots of Grid::acc (free after the grid update),
+// and with `mean` also (v + v_R) / 2 over the momentum slots (for the
+// second-order position update).
+void remapped_velocity(Grid &grid, const Boundary &bc, double t_end, bool mean);
+
+} // namespace talus

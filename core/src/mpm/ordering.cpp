@@ -1,0 +1,110 @@
+#include "ordering.hpp"
+
+#include <algorithm>
+#include <numeric>
+
+namespace talus {
+
+Ordering::Ordering(const GridGeometry &geo, std::size_t n_sets)
+    : geo_(geo), order_(n_sets), slab_begin_(n_sets), slab_of_(n_sets), cell_of_(n_sets) {
+    // Slabs across the longest direction; on a tie the slowest-varying
+    // index of the cell order, so that a slab's particles are contiguous in
+    // memory once sorted by cell.
+    const int dim = geo.dim;
+    axis_ = dim - 1;
+    for (int d = dim - 2; d >= 0; --d)
+        if (geo.cells[static_cast<std::size_t>(d)] > geo.cells[static_cast<std::size_t>(axis_)])
+            axis_ = d;
+    n_slabs_ = std::max(1, geo.cells[static_cast<std::size_t>(axis_)] / kWidth);
+}
+
+void Ordering::prepare(std::vector<ParticleSet> &sets, double threshold) {
+    std::size_t n = 0;
+    for (const ParticleSet &s : sets)
+        n += s.n;
+    if (threshold > 0.0 && out_of_order_ > threshold * static_cast<double>(n)) sort(sets);
+    bin(sets);
+}
+
+Ordering::Marks Ordering::marks(std::size_t si, std::size_t n) {
+    auto &slab = slab_of_[si];
+    if (slab.size() != n) {
+        slab.assign(n, -1);
+        slabs_changed_ = true;
+    }
+    cell_of_[si].resize(n);
+    return {slab.data(), cell_of_[si].data()};
+}
+
+void Ordering::invalidate() {
+    for (auto &sl : slab_of_)
+        sl.clear();
+    slabs_changed_ = true;
+}
+
+// Groups the particles of every set by slab (a counting sort of indices).
+void Ordering::bin(const std::vector<ParticleSet> &sets) {
+    // Unchanged slabs give the same order: nothing to redo.
+    bool same = !slabs_changed_;
+    for (std::size_t si = 0; same && si < sets.size(); ++si)
+        same = order_[si].size() == sets[si].n && slab_of_[si].size() == sets[si].n;
+    if (same) return;
+    for (std::size_t si = 0; si < sets.size(); ++si) {
+        const ParticleSet &s = sets[si];
+        auto &begin = slab_begin_[si];
+        begin.assign(static_cast<std::size_t>(n_slabs_) + 1, 0);
+        // Slabs come from the last pass of the previous step, or are
+        // computed here after a sort or at the start.
+        auto &slab = slab_of_[si];
+        if (slab.size() != s.n) {
+            slab.resize(s.n);
+            const std::size_t a = static_cast<std::size_t>(axis_);
+            for (std::size_t p = 0; p < s.n; ++p)
+                slab[p] = slab_of_cell(geo_.cell(axis_, s.x[a][p]));
+        }
+        for (std::size_t p = 0; p < s.n; ++p)
+            ++begin[static_cast<std::size_t>(slab[p]) + 1];
+        std::partial_sum(begin.begin(), begin.end(), begin.begin());
+        order_[si].resize(s.n);
+        // Fill by decrementing the end offsets, walking backwards so that
+        // each slab keeps memory order.
+        end_scratch_.assign(begin.begin() + 1, begin.end());
+        for (std::size_t p = s.n; p-- > 0;)
+            order_[si][--end_scratch_[static_cast<std::size_t>(slab[p])]] =
+                static_cast<std::uint32_t>(p);
+    }
+    slabs_changed_ = false;
+}
+
+// Reorders each set's particles by cell (a stable sort of the permutation,
+// then every column through one reusable buffer: no second copy of the
+// particles, which would fault in fresh pages every sort).
+void Ordering::sort(std::vector<ParticleSet> &sets) {
+    std::vector<std::size_t> key, perm;
+    for (ParticleSet &s : sets) {
+        key.resize(s.n);
+        perm.resize(s.n);
+        for (std::size_t p = 0; p < s.n; ++p) {
+            double x[3] = {s.x[0][p], s.x[1][p], geo_.dim == 3 ? s.x[2][p] : 0.0};
+            key[p] = geo_.cell_index(x);
+        }
+        std::iota(perm.begin(), perm.end(), 0);
+        std::stable_sort(perm.begin(), perm.end(),
+                         [&](std::size_t a, std::size_t b) { return key[a] < key[b]; });
+        bool sorted = true;
+        for (std::size_t p = 0; p < s.n && sorted; ++p)
+            sorted = perm[p] == p;
+        if (sorted) continue;
+        s.for_each_column([&](auto &a, std::size_t stride) {
+            using T = typename std::decay_t<decltype(a)>::value_type;
+            auto &buf = std::get<std::vector<T>>(sort_buffers_);
+            buf.resize(s.n * stride);
+            for (std::size_t p = 0; p < s.n; ++p)
+                std::copy_n(a.data() + perm[p] * stride, stride, buf.data() + p * stride);
+            std::copy(buf.begin(), buf.end(), a.data());
+        });
+    }
+    invalidate();
+}
+
+} // namespace talus

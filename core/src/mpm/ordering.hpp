@@ -1,0 +1,77 @@
+// The order particles are visited in: sorted by cell in memory (so that
+// neighbours on the grid are neighbours in memory, for the caches of P2G
+// and G2P), and binned into slabs for the conflict-free parallel P2G.
+//
+// Slab colouring: slabs of `width` cells along `axis`; a particle's stencil
+// reaches at most one cell below and two above its own, so slabs of one
+// colour (every other slab) never write the same node when width >= 4.
+#pragma once
+
+#include "grid.hpp"
+
+#include <talus/mpm/particles.hpp>
+
+#include <cstddef>
+#include <cstdint>
+#include <tuple>
+#include <vector>
+
+namespace talus {
+
+class Ordering {
+  public:
+    Ordering(const GridGeometry &geo, std::size_t n_sets);
+
+    int axis() const { return axis_; }
+    int n_slabs() const { return n_slabs_; }
+    int slab_of_cell(int cell) const { return std::min(cell / kWidth, n_slabs_ - 1); }
+    // Set si's particles of one slab, in memory order.
+    struct Range {
+        const std::uint32_t *begin, *end;
+    };
+    Range slab(std::size_t si, int slab) const {
+        const auto &b = slab_begin_[si];
+        const std::uint32_t *o = order_[si].data();
+        return {o + b[static_cast<std::size_t>(slab)], o + b[static_cast<std::size_t>(slab) + 1]};
+    }
+
+    // Re-sorts every set by cell if more than `threshold` of the particles
+    // are out of cell order (0: never), then bins them by slab.
+    void prepare(std::vector<ParticleSet> &sets, double threshold);
+    // Sorts every set by cell now.
+    void sort(std::vector<ParticleSet> &sets);
+
+    // What the last pass of a step records for the next one: each
+    // particle's slab and cell, written in that pass's loop.
+    struct Marks {
+        std::int32_t *slab;
+        std::uint32_t *cell;
+    };
+    Marks marks(std::size_t si, std::size_t n);
+    // After that pass: how many particles changed slab, and how many sit in
+    // a lower cell than their predecessor in memory (the decay of the sort).
+    void marked(long changed_slab, double out_of_order) {
+        slabs_changed_ = changed_slab > 0;
+        out_of_order_ = out_of_order;
+    }
+    // Particles were removed or moved: slabs are recomputed at the next bin.
+    void invalidate();
+
+  private:
+    static constexpr int kWidth = 4;
+    void bin(const std::vector<ParticleSet> &sets);
+    GridGeometry geo_;
+    int axis_ = 0, n_slabs_ = 1;
+    std::vector<std::vector<std::uint32_t>> order_;    // per set: particle indices by slab
+    std::vector<std::vector<std::size_t>> slab_begin_; // per set: n_slabs + 1 offsets
+    std::vector<std::vector<std::int32_t>> slab_of_;   // per set, per particle
+    std::vector<std::vector<std::uint32_t>> cell_of_;  // per set, per particle
+    std::vector<std::size_t> end_scratch_;
+    double out_of_order_ = 0.0;
+    bool slabs_changed_ = true;
+    std::tuple<std::vector<double>, std::vector<std::int64_t>, std::vector<std::int32_t>,
+               std::vector<std::uint32_t>>
+        sort_buffers_;
+};
+
+} // namespace talus

@@ -1,0 +1,126 @@
+// The parallel seam: every loop shape the grid cycle uses, and the only
+// place that knows the threading backend (OpenMP). A kernel says what it
+// does for one particle, one node or one block; these say how the work is
+// spread. Another backend (Kokkos, CUDA, SYCL) replaces this file's bodies
+// (docs/design-decisions.md, "The parallel seam").
+//
+// Inside the loops: no strings, locks or allocation. A failure is recorded
+// in a FirstFailure (one plain record per thread) and turned into a message
+// once the loop is over.
+#pragma once
+
+#include <algorithm>
+#include <cstddef>
+#include <vector>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+namespace talus::par {
+
+inline int max_threads() {
+#ifdef _OPENMP
+    return omp_get_max_threads();
+#else
+    return 1;
+#endif
+}
+
+inline int thread_index() {
+#ifdef _OPENMP
+    return omp_get_thread_num();
+#else
+    return 0;
+#endif
+}
+
+inline void set_threads(int n) {
+#ifdef _OPENMP
+    if (n > 0) omp_set_num_threads(n);
+#else
+    (void)n;
+#endif
+}
+
+// f(i) for i in [0, n): particles of a set or nodes of the grid, in equal
+// static chunks (each thread touches the same memory every step).
+template <class F>
+void for_each(std::size_t n, F &&f) {
+    const std::ptrdiff_t N = static_cast<std::ptrdiff_t>(n);
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t i = 0; i < N; ++i)
+        f(static_cast<std::size_t>(i));
+}
+
+// f(b) for blocks b in [0, n_blocks) of uneven cost (material batches: a
+// plastic block costs more than an elastic one), dealt out dynamically.
+template <class F>
+void for_each_block(std::size_t n_blocks, F &&f) {
+    const std::ptrdiff_t N = static_cast<std::ptrdiff_t>(n_blocks);
+#pragma omp parallel for schedule(dynamic, 4)
+    for (std::ptrdiff_t b = 0; b < N; ++b)
+        f(static_cast<std::size_t>(b));
+}
+
+// f(slab) for every slab, two colours one after the other: within a colour
+// slabs run concurrently and must not write the same memory (the caller's
+// slabs are wide enough that every other one is apart, see Ordering).
+template <class F>
+void for_each_slab_by_colour(int n_slabs, F &&f) {
+    for (int colour = 0; colour < 2; ++colour) {
+#pragma omp parallel for schedule(dynamic, 1)
+        for (int slab = colour; slab < n_slabs; slab += 2)
+            f(slab);
+    }
+}
+
+// f(i, partial) for i in [0, n), each thread into its own partial result R
+// (default-constructed), merged after the loop by R::merge(const R &).
+template <class R, class F>
+R reduce(std::size_t n, F &&f) {
+    std::vector<R> partial(static_cast<std::size_t>(max_threads()));
+    const std::ptrdiff_t N = static_cast<std::ptrdiff_t>(n);
+#pragma omp parallel
+    {
+        // A local partial (registers, once the loop body is inlined), stored
+        // once at the end.
+        R mine{};
+#pragma omp for schedule(static)
+        for (std::ptrdiff_t i = 0; i < N; ++i)
+            f(static_cast<std::size_t>(i), mine);
+        partial[static_cast<std::size_t>(thread_index())] = mine;
+    }
+    R total{};
+    for (const R &p : partial)
+        total.merge(p);
+    return total;
+}
+
+// The first failure of a parallel loop, recorded per thread without a lock:
+// each thread keeps its earliest record (by Record::before), and first()
+// gives the earliest of all, the same whatever the thread count.
+template <class Record>
+class FirstFailure {
+  public:
+    FirstFailure() : slot_(static_cast<std::size_t>(max_threads())) {}
+    void record(const Record &r) {
+        Slot &s = slot_[static_cast<std::size_t>(thread_index())];
+        if (!s.set || r.before(s.record)) s = Slot{true, r};
+    }
+    const Record *first() const {
+        const Slot *best = nullptr;
+        for (const Slot &s : slot_)
+            if (s.set && (!best || s.record.before(best->record))) best = &s;
+        return best ? &best->record : nullptr;
+    }
+
+  private:
+    struct Slot {
+        bool set = false;
+        Record record{};
+    };
+    std::vector<Slot> slot_;
+};
+
+} // namespace talus::par

@@ -1,0 +1,189 @@
+#include "particle_generation.hpp"
+
+#include <talus/material/plugin_loader.hpp>
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+
+namespace talus {
+
+namespace {
+
+ParticleSet new_set(const Scenario &sc, std::size_t material, ColumnsInUse columns,
+                    const MaterialInstance *instance) {
+    ParticleSet s;
+    const NamedMaterial &m = sc.materials[material];
+    s.material = material;
+    s.instance = instance;
+    s.finite_strain = m.spec.model->finite_strain();
+    s.state_size = m.spec.model->state_size();
+    s.rho0 = m.spec.density;
+    s.dim = sc.dim;
+    s.has_C = columns.C;
+    s.has_divv = columns.divv;
+    s.has_L = columns.L;
+    s.has_dx = columns.dx;
+    return s;
+}
+
+// The lattice points inside a group's shape: ppc per direction per cell,
+// at the centres of the sub-cells.
+std::vector<std::array<double, 3>> lattice_points(const Scenario &sc, const GroupSpec &gs) {
+    const int D = sc.dim;
+    const Box bb = gs.shape.bounds(D);
+    const double sub = sc.cell / gs.particles_per_cell;
+    std::array<int, 3> lo{0, 0, 0}, hi{0, 1, 1};
+    for (std::size_t d = 0; d < static_cast<std::size_t>(D); ++d) {
+        lo[d] = static_cast<int>(std::floor((bb.min[d] - sc.origin[d]) / sub)) - 1;
+        hi[d] = static_cast<int>(std::ceil((bb.max[d] - sc.origin[d]) / sub)) + 1;
+    }
+    std::vector<std::array<double, 3>> points;
+    for (int k = lo[2]; k < hi[2]; ++k)
+        for (int j = lo[1]; j < hi[1]; ++j)
+            for (int i = lo[0]; i < hi[0]; ++i) {
+                const std::array<double, 3> x = {sc.origin[0] + (i + 0.5) * sub,
+                                                 sc.origin[1] + (j + 0.5) * sub,
+                                                 D == 3 ? sc.origin[2] + (k + 0.5) * sub : 0.0};
+                if (!gs.shape.contains(x.data(), D)) continue;
+                for (std::size_t d = 0; d < static_cast<std::size_t>(D); ++d)
+                    if (x[d] < sc.origin[d] || x[d] > sc.origin[d] + sc.size[d])
+                        throw Error(gs.shape_origin.error(fmt::format(
+                            "group '{}' has particles outside the grid (at {} = {:.6g} m; the "
+                            "grid spans [{:.6g}, {:.6g}] m); enlarge grid.size or move the shape",
+                            gs.name, "xyz"[d], x[d], sc.origin[d], sc.origin[d] + sc.size[d])));
+                points.push_back(x);
+            }
+    if (points.empty())
+        throw Error(gs.shape_origin.error(
+            fmt::format("group '{}' contains no particle: its shape holds no point of the "
+                        "{}-per-cell lattice (make it larger or raise particles_per_cell)",
+                        gs.name, gs.particles_per_cell)));
+    return points;
+}
+
+// The stress at t = 0 at height x[D-1]: uniform, or geostatic
+// sigma_v = rho g (surface - height), tension positive, sigma_h = K0 sigma_v.
+void initial_stress(const Scenario &sc, const GroupSpec &gs, double rho0, const double *x,
+                    double *sig) {
+    const int D = sc.dim;
+    std::fill_n(sig, 6, 0.0);
+    if (gs.stress.kind == InitialStress::Kind::uniform)
+        std::copy_n(gs.stress.uniform.begin(), 6, sig);
+    if (gs.stress.kind != InitialStress::Kind::geostatic) return;
+    const std::size_t up = static_cast<std::size_t>(D - 1);
+    const double surface = gs.stress.surface.value_or(gs.shape.bounds(D).max[up]);
+    const double sv = rho0 * sc.gravity[up] * std::max(0.0, surface - x[up]);
+    for (int d = 0; d < 3; ++d)
+        sig[d] = d == D - 1 ? sv : gs.stress.k0 * sv;
+}
+
+// Particle p of set s at x, of group gi: every column at its initial value.
+void place(const Scenario &sc, std::size_t gi, const std::vector<double> &q_init,
+           const std::array<double, 3> &x, ParticleSet &s, std::size_t p) {
+    const GroupSpec &gs = sc.groups[gi];
+    const int D = sc.dim;
+    s.group[p] = static_cast<std::int32_t>(gi);
+    // v = v0 + w x (x - centre): a rigid motion about the bounding box's centre.
+    const Box bb = gs.shape.bounds(D);
+    const Vec3 &w = gs.angular_velocity;
+    double r[3] = {0, 0, 0};
+    for (std::size_t d = 0; d < static_cast<std::size_t>(D); ++d)
+        r[d] = x[d] - 0.5 * (bb.min[d] + bb.max[d]);
+    const double wxr[3] = {w[1] * r[2] - w[2] * r[1], w[2] * r[0] - w[0] * r[2],
+                           w[0] * r[1] - w[1] * r[0]};
+    for (std::size_t d = 0; d < static_cast<std::size_t>(D); ++d) {
+        s.x[d][p] = s.x0[d][p] = x[d];
+        s.v[d][p] = gs.velocity[d] + wxr[d];
+    }
+    const double V0 = std::pow(sc.cell / gs.particles_per_cell, D);
+    s.vol0[p] = V0;
+    s.mass[p] = s.rho0 * V0;
+    s.lp[p] = 0.5 / gs.particles_per_cell;
+    for (std::size_t a = 0; a < 9; a += 4)
+        s.F[9 * p + a] = s.F_new[9 * p + a] = 1.0;
+    s.J[p] = 1.0;
+    s.rho[p] = s.rho0;
+    initial_stress(sc, gs, s.rho0, x.data(), &s.stress[6 * p]);
+    std::copy(q_init.begin(), q_init.end(), s.state.data() + p * s.state_size);
+    if (s.has_C) {
+        // The affine transfers start from the rigid motion's exact velocity
+        // gradient, skew(w).
+        double *C = &s.C[9 * p];
+        C[1] = -w[2];
+        C[2] = w[1];
+        C[3] = w[2];
+        C[5] = -w[0];
+        C[6] = -w[1];
+        C[7] = w[0];
+    }
+    std::uint32_t lm = 0, fm = 0;
+    for (std::size_t l = 0; l < sc.loads.size(); ++l) {
+        const Load &ld = sc.loads[l];
+        if ((!ld.group || *ld.group == gi) && (!ld.box || ld.box->contains(x.data(), D)))
+            lm |= 1u << l;
+    }
+    for (std::size_t f = 0; f < sc.particle_velocities.size(); ++f) {
+        const ParticleVelocity &pv = sc.particle_velocities[f];
+        if ((!pv.group || *pv.group == gi) && (!pv.box || pv.box->contains(x.data(), D)))
+            fm |= 1u << f;
+    }
+    s.load_mask[p] = lm;
+    s.fix_mask[p] = fm;
+}
+
+// A load or a fixity that acts on nothing is a mistake in its box or
+// group, not a no-op.
+void check_selections(const Scenario &sc, const std::vector<ParticleSet> &sets) {
+    auto selected = [&](std::size_t k, bool load) {
+        for (const ParticleSet &s : sets)
+            for (std::size_t p = 0; p < s.n; ++p)
+                if (((load ? s.load_mask[p] : s.fix_mask[p]) >> k) & 1u) return true;
+        return false;
+    };
+    constexpr const char *what =
+        "selects no particle (its box and group have no particle in common at t = 0)";
+    for (std::size_t k = 0; k < sc.loads.size(); ++k)
+        if (!selected(k, true)) throw Error(sc.loads[k].origin.error(what));
+    for (std::size_t k = 0; k < sc.particle_velocities.size(); ++k)
+        if (!selected(k, false)) throw Error(sc.particle_velocities[k].origin.error(what));
+}
+
+} // namespace
+
+std::vector<ParticleSet>
+generate_particles(const Scenario &sc, ColumnsInUse columns,
+                   const std::vector<std::unique_ptr<MaterialInstance>> &instances) {
+    std::vector<ParticleSet> sets;
+    std::vector<int> set_of(sc.materials.size(), -1);
+    std::int64_t next_id = 0;
+    const std::size_t up = static_cast<std::size_t>(sc.dim - 1);
+    for (std::size_t gi = 0; gi < sc.groups.size(); ++gi) {
+        const GroupSpec &gs = sc.groups[gi];
+        if (gs.stress.kind == InitialStress::Kind::geostatic && !(sc.gravity[up] < 0.0))
+            throw Error(gs.stress_origin.error(
+                fmt::format("a geostatic initial stress needs gravity pointing down the last "
+                            "axis ({}), got {:g} m/s^2 (set gravity:)",
+                            sc.dim == 2 ? "y" : "z", sc.gravity[up])));
+        if (set_of[gs.material] < 0) {
+            set_of[gs.material] = static_cast<int>(sets.size());
+            sets.push_back(new_set(sc, gs.material, columns, instances[gs.material].get()));
+        }
+        ParticleSet &s = sets[static_cast<std::size_t>(set_of[gs.material])];
+        const std::vector<std::array<double, 3>> points = lattice_points(sc, gs);
+        const std::vector<double> &q_init = sc.materials[gs.material].spec.initial_state;
+        const std::size_t first = s.n;
+        s.resize(first + points.size());
+        for (std::size_t k = 0; k < points.size(); ++k) {
+            s.id[first + k] = next_id++;
+            place(sc, gi, q_init, points[k], s, first + k);
+        }
+    }
+    check_selections(sc, sets);
+    return sets;
+}
+
+} // namespace talus

@@ -1,0 +1,63 @@
+#include <talus/mpm/particles.hpp>
+
+#include <algorithm>
+#include <cstring>
+#include <new>
+
+namespace talus {
+
+namespace {
+constexpr std::size_t kAlign = 64; // a cache line: no column shares one with another
+std::size_t round_up(std::size_t bytes) { return (bytes + kAlign - 1) / kAlign * kAlign; }
+} // namespace
+
+void ParticleSet::Free::operator()(std::byte *p) const {
+    ::operator delete[](p, std::align_val_t(kAlign));
+}
+
+std::size_t ParticleSet::bytes_per_particle() {
+    std::size_t bytes = 0;
+    for_each_column([&](auto &col, std::size_t stride) {
+        bytes += stride * sizeof(typename std::decay_t<decltype(col)>::value_type);
+    });
+    return bytes;
+}
+
+void ParticleSet::resize(std::size_t count) {
+    if (count > capacity_) {
+        // Grow by half again (generation adds particles one at a time), and
+        // carve every column from one new arena.
+        const std::size_t cap = std::max({count, capacity_ + capacity_ / 2, std::size_t{64}});
+        std::size_t total = 0;
+        for_each_column([&](auto &col, std::size_t stride) {
+            total += round_up(cap * stride * sizeof(*col.data_));
+        });
+        std::unique_ptr<std::byte[], Free> fresh(
+            static_cast<std::byte *>(::operator new[](total, std::align_val_t(kAlign))));
+        std::size_t offset = 0;
+        for_each_column([&](auto &col, std::size_t stride) {
+            using T = typename std::decay_t<decltype(col)>::value_type;
+            T *dst = reinterpret_cast<T *>(fresh.get() + offset);
+            if (col.data_) std::memcpy(dst, col.data_, n * stride * sizeof(T));
+            col.data_ = dst;
+            offset += round_up(cap * stride * sizeof(T));
+        });
+        arena_ = std::move(fresh);
+        capacity_ = cap;
+    }
+    for_each_column([&](auto &col, std::size_t stride) {
+        using T = typename std::decay_t<decltype(col)>::value_type;
+        if (count > n) std::memset(col.data_ + n * stride, 0, (count - n) * stride * sizeof(T));
+        col.size_ = count * stride;
+    });
+    n = count;
+}
+
+void ParticleSet::move(std::size_t from, std::size_t to) {
+    if (from == to) return;
+    for_each_column([&](auto &col, std::size_t stride) {
+        std::copy_n(col.data_ + from * stride, stride, col.data_ + to * stride);
+    });
+}
+
+} // namespace talus

@@ -1,0 +1,170 @@
+// The phases as the schemes call them: each times itself under its own
+// name and hands its kernel the parts of the state it reads and writes.
+#include "simulation_state.hpp"
+
+#include "grid_update.hpp"
+
+#include <talus/material/cut_step.hpp>
+#include <talus/material/plugin_loader.hpp>
+
+#include <fmt/format.h>
+
+namespace talus {
+
+void Simulation::Impl::p2g_momentum() {
+    auto tm = timer(Phase::p2g);
+    talus::p2g_momentum(p2g_sources(), grid.acc.data());
+}
+
+void Simulation::Impl::p2g_forces() {
+    auto tm = timer(Phase::p2g);
+    talus::p2g_forces(p2g_sources(), grid.acc.data());
+}
+
+void Simulation::Impl::p2g_momentum_and_forces() {
+    auto tm = timer(Phase::p2g);
+    talus::p2g_momentum_and_forces(p2g_sources(), grid.acc.data());
+}
+
+void Simulation::Impl::p2g_remap() {
+    auto tm = timer(Phase::p2g);
+    grid.clear_momentum();
+    talus::p2g_remap(p2g_sources(), grid.acc.data());
+}
+
+void Simulation::Impl::grid_velocity(double t) {
+    auto tm = timer(Phase::grid_update);
+    talus::grid_velocity(grid, boundary, t);
+}
+
+void Simulation::Impl::grid_update(double t, double dt) {
+    auto tm = timer(Phase::grid_update);
+    talus::grid_update(grid, boundary, t, dt);
+}
+
+void Simulation::Impl::remapped_velocity(double t_end) {
+    auto tm = timer(Phase::grid_update);
+    talus::remapped_velocity(grid, boundary, t_end, velocity_motion == Motion::mean_velocity);
+}
+
+void Simulation::Impl::g2p_velocity(double dt, bool store_gradient) {
+    auto tm = timer(Phase::g2p);
+    talus::g2p_velocity(g2p_targets(), grid.vel.data(), dt, velocity_motion, store_gradient);
+}
+
+void Simulation::Impl::g2p_velocity_and_kinematics(double t, double dt) {
+    std::optional<Inversion> inv;
+    {
+        auto tm = timer(Phase::g2p);
+        inv =
+            talus::g2p_velocity_and_kinematics(g2p_targets(), grid.vel.data(), dt, velocity_motion);
+    }
+    if (inv) inverted(*inv, t);
+}
+
+void Simulation::Impl::g2p_gradient(const double *field, std::size_t offset,
+                                    std::size_t move_offset, double move_dt) {
+    auto tm = timer(Phase::g2p);
+    talus::g2p_gradient(g2p_targets(), field, offset, move_offset, move_dt);
+}
+
+void Simulation::Impl::kinematics(double t, double dt) {
+    std::optional<Inversion> inv;
+    {
+        auto tm = timer(Phase::kinematics);
+        inv = talus::kinematics(sets, grid.geo, dt,
+                                sc.solver.cell_averaged_dilation ? &dilation : nullptr);
+    }
+    if (inv) inverted(*inv, t);
+}
+
+void Simulation::Impl::material_update(double t, double dt) {
+    std::optional<MaterialFailure> failure;
+    {
+        auto tm = timer(Phase::material_update);
+        failure = materials.run(sets, t, dt, step + 1, /*add_work=*/true);
+    }
+    if (failure) material_failed(*failure, step + 1);
+}
+
+void Simulation::Impl::move_particles(PositionStep how) {
+    auto tm = timer(Phase::move_particles);
+    const StepEnd end = talus::move_particles(sets, grid.geo, domain, order, how);
+    max_speed = end.max_speed;
+    held_at_faces += end.held;
+    held_depth = std::max(held_depth, end.held_depth);
+    if (end.outside == 0) return;
+    const bool remove = sc.solver.leave == LeavePolicy::remove;
+    const Leaving out = collect_leaving(sets, domain, sc.dim, remove, group_names);
+    order.invalidate(); // indices moved
+    if (out.count == 0) return;
+    if (remove) {
+        removed += out.count;
+        return;
+    }
+    std::string list;
+    for (const std::string &r : out.first)
+        list.append("\n  ").append(r);
+    if (out.count > static_cast<long>(out.first.size()))
+        list.append(
+            fmt::format("\n  ... and {} more", out.count - static_cast<long>(out.first.size())));
+    throw Error(fmt::format("step {} (t = {:.6g} s): {} particle(s) left the grid (policy "
+                            "solver.leaving_grid: stop; use 'remove' to delete them instead):{}",
+                            step + 1, step_end, out.count, list));
+}
+
+[[noreturn]] void Simulation::Impl::inverted(const Inversion &inv, double t) const {
+    const ParticleSet &s = sets[inv.set];
+    const std::size_t p = inv.particle;
+    throw Error(fmt::format(
+        "step {} (t = {:.6g} s): particle {} of group '{}' inverted (J = {:.3g} <= 0): the "
+        "deformation in one step is too large; reduce cfl or dt",
+        step + 1, t, s.id[p], group_names[static_cast<std::size_t>(s.group[p])], s.J[p]));
+}
+
+[[noreturn]] void Simulation::Impl::material_failed(const MaterialFailure &f, long step_number) {
+    const ParticleSet &s = sets[f.set];
+    const MaterialInstance::Result &r = f.result;
+    const bool at_point = r.point >= 0 && static_cast<std::size_t>(r.point) < f.count;
+    const std::size_t p = f.begin + (at_point ? static_cast<std::size_t>(r.point) : 0);
+    const bool cut = r.status == TALUS_STATUS_CUT_STEP;
+    if (at_point) {
+        // The failing point's inputs: stress and state as copied before the
+        // call, the rest as the failing (sub-)step left them.
+        FailedCall fc;
+        fc.material = s.material;
+        fc.particle = s.id[p];
+        fc.step = step_number;
+        fc.time = f.t;
+        fc.dt = f.dt;
+        fc.density = s.rho[p];
+        for (std::size_t c = 0; c < 6; ++c)
+            fc.strain_increment[c] = s.de[6 * p + c];
+        fc.stress = f.stress_in;
+        for (std::size_t c = 0; c < 9; ++c) {
+            fc.F_start[c] = s.F[9 * p + c];
+            fc.F_end[c] = s.F_new[9 * p + c];
+        }
+        fc.state = f.state_in;
+        fc.cut_step = cut;
+        fc.message = r.message;
+        failed_call = std::move(fc);
+    }
+    const NamedMaterial &mat = sc.materials[s.material];
+    const std::string where =
+        at_point
+            ? fmt::format("particle {} of group '{}' at ({:.6g}, {:.6g}{})", s.id[p],
+                          group_names[static_cast<std::size_t>(s.group[p])], s.x[0][p], s.x[1][p],
+                          sc.dim == 3 ? fmt::format(", {:.6g}", s.x[2][p]) : std::string())
+            : fmt::format("a batch of {} particles", f.count);
+    throw Error(fmt::format(
+        "{}step {} (t = {:.6g} s): material '{}' (model '{}', {}) failed at {}: {}{}",
+        step_number == 0 ? "initial state: " : "", step + 1, f.t, mat.name, mat.spec.model->id(),
+        mat.spec.model->library().path().string(), where, r.message,
+        cut ? fmt::format(" (still asking for a smaller step with the increment cut to {:g} of "
+                          "the step's)",
+                          cut_step::kSmallestPart)
+            : std::string()));
+}
+
+} // namespace talus

@@ -1,0 +1,80 @@
+// The schemes (docs/theory.md, "The four schemes"): when the stress is
+// updated within a step, and which grid velocity moves the particles and
+// advances F ("Kinematic consistency"). Each is the seed's four phases in
+// its own order: P2G, grid update, G2P (velocity, kinematics, material
+// update), and the step's end.
+#include "simulation_state.hpp"
+
+namespace talus {
+
+using node::kEndVelocity, node::kForce, node::kMomentum, node::kVelocity;
+
+// Update stress last: L from v~, the particles move with v~ (or with
+// (v + v~) / 2 at second order).
+void Simulation::Impl::usl(double t, double dt) {
+    p2g_momentum_and_forces();
+    grid_update(t, dt);
+    g2p_velocity(dt, /*store_gradient=*/true);
+    kinematics(t, dt);
+    material_update(t, dt);
+    move_particles(PositionStep::add_dx);
+}
+
+// USL with the kinematics done inside the G2P loop while L is in
+// registers: no stored gradient, no position step, one pass less.
+void Simulation::Impl::usl_fused(double t, double dt) {
+    p2g_momentum_and_forces();
+    grid_update(t, dt);
+    g2p_velocity_and_kinematics(t, dt);
+    material_update(t, dt);
+    move_particles(PositionStep::already_moved);
+}
+
+// Update stress first: L from the mapped start velocities v, which also
+// move the particles; then the forces from the updated stress.
+void Simulation::Impl::usf(double t, double dt) {
+    p2g_momentum();
+    grid_velocity(t);
+    g2p_gradient(grid.vel.data(), kVelocity, kVelocity, dt);
+    kinematics(t, dt);
+    material_update(t, dt);
+    p2g_forces();
+    grid_update(t, dt);
+    g2p_velocity(dt, /*store_gradient=*/false);
+    move_particles(PositionStep::add_dx);
+}
+
+// Modified USL (Sulsky et al. 1995): USL's velocity update, then the
+// updated particle momentum is mapped again and L taken from that field,
+// which also moves the particles (moved by v~ instead, they drift from what
+// F records under a held load).
+void Simulation::Impl::musl(double t, double dt) {
+    p2g_momentum_and_forces();
+    grid_update(t, dt);
+    g2p_velocity(dt, /*store_gradient=*/false);
+    p2g_remap();
+    remapped_velocity(t + dt);
+    const bool mean = velocity_motion == Motion::mean_velocity;
+    g2p_gradient(grid.acc.data(), kForce, mean ? kMomentum : kForce, dt);
+    kinematics(t, dt);
+    material_update(t, dt);
+    move_particles(PositionStep::add_dx);
+}
+
+// Update stress average (Nairn 2003): half the increment from v before the
+// forces, half from v~ after; the particles move with (v + v~) / 2.
+void Simulation::Impl::usavg(double t, double dt) {
+    p2g_momentum();
+    grid_velocity(t);
+    g2p_gradient(grid.vel.data(), kVelocity, 0, 0.0);
+    kinematics(t, 0.5 * dt);
+    material_update(t, 0.5 * dt);
+    p2g_forces();
+    grid_update(t, dt);
+    g2p_velocity(dt, /*store_gradient=*/true);
+    kinematics(t + 0.5 * dt, 0.5 * dt);
+    material_update(t + 0.5 * dt, 0.5 * dt);
+    move_particles(PositionStep::add_dx);
+}
+
+} // namespace talus

@@ -1,0 +1,232 @@
+// The Simulation: set-up, and the step that picks dt, readies the grid and
+// the particle order, and runs the scheme (schemes.cpp).
+#include "simulation_state.hpp"
+
+#include "parallel.hpp"
+#include "particle_generation.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace talus {
+
+namespace {
+
+Scenario &checked(Scenario &sc) {
+    if (sc.loads.size() > kMaxLoads || sc.particle_velocities.size() > kMaxLoads)
+        throw Error(fmt::format("{}: at most {} loads and {} particle_velocities entries", sc.file,
+                                kMaxLoads, kMaxLoads));
+    return sc;
+}
+
+StepVariant variant_of(const SolverSpec &sv) {
+    switch (sv.scheme) {
+    case Scheme::usl: return sv.cell_averaged_dilation ? StepVariant::usl : StepVariant::usl_fused;
+    case Scheme::usf: return StepVariant::usf;
+    case Scheme::musl: return StepVariant::musl;
+    case Scheme::usavg: return StepVariant::usavg;
+    }
+    return StepVariant::usl;
+}
+
+// How each scheme moves its particles (docs/theory.md, "Kinematic
+// consistency"): USL and USAVG in the velocity pass, by v~ or by the mean
+// (v + v~) / 2; USF and MUSL in the gradient pass of their own field, where
+// MUSL's second order takes the mean of the remapped field with v.
+Motion velocity_motion_of(const SolverSpec &sv) {
+    const bool mean =
+        sv.scheme == Scheme::usavg || (sv.second_order_position && sv.scheme != Scheme::usf);
+    if (sv.scheme == Scheme::usf) return Motion::none;
+    if (sv.scheme == Scheme::musl) return mean ? Motion::mean_velocity : Motion::none;
+    return mean ? Motion::mean_velocity : Motion::end_velocity;
+}
+
+ColumnsInUse columns_of(const SolverSpec &sv) {
+    const bool fused = variant_of(sv) == StepVariant::usl_fused;
+    return {.L = !fused,
+            .dx = !fused,
+            .C = sv.transfer != Transfer::flip,
+            .divv = sv.cell_averaged_dilation};
+}
+
+MaterialNames names_of(const Scenario &sc, const std::vector<ParticleSet> &sets) {
+    MaterialNames n;
+    for (const ParticleSet &s : sets)
+        n.material.push_back(sc.materials[s.material].name.c_str());
+    for (const GroupSpec &g : sc.groups)
+        n.group.push_back(g.name.c_str());
+    return n;
+}
+
+// The plugin instance of every material some group uses; a parameter set
+// the plugin refuses is reported at the material's place in the file.
+std::vector<std::unique_ptr<MaterialInstance>> make_instances(const Scenario &sc) {
+    std::vector<std::unique_ptr<MaterialInstance>> out(sc.materials.size());
+    for (const GroupSpec &g : sc.groups) {
+        if (out[g.material]) continue;
+        const NamedMaterial &m = sc.materials[g.material];
+        try {
+            out[g.material] = instantiate(m.spec);
+        } catch (const Error &e) {
+            throw Error(m.origin.error(e.what()));
+        }
+    }
+    return out;
+}
+
+Domain domain_of(const Scenario &sc) {
+    Domain dom;
+    for (std::size_t d = 0; d < static_cast<std::size_t>(sc.dim); ++d) {
+        dom.lo[d] = sc.origin[d];
+        dom.hi[d] = sc.origin[d] + sc.size[d];
+        dom.closed_lo[d] = sc.faces[2 * d].type != FaceType::free;
+        dom.closed_hi[d] = sc.faces[2 * d + 1].type != FaceType::free;
+    }
+    return dom;
+}
+
+} // namespace
+
+Simulation::Impl::Impl(Scenario &scenario, SolverOptions options)
+    : sc(checked(scenario)), opt(options),
+      grid(sc.dim, sc.origin, sc.size, sc.cell, sc.solver.shape), boundary(sc, grid),
+      instances(make_instances(sc)), sets(generate_particles(sc, columns_of(sc.solver), instances)),
+      order(grid.geo, sets.size()), loads(sc), domain(domain_of(sc)),
+      materials(names_of(sc, sets), opt.batch_size), variant(variant_of(sc.solver)),
+      velocity_motion(velocity_motion_of(sc.solver)) {
+    for (const GroupSpec &g : sc.groups)
+        group_names.push_back(g.name);
+    if (sc.solver.cell_averaged_dilation) {
+        dilation.div.assign(grid.n_cells, 0.0);
+        dilation.vol.assign(grid.n_cells, 0.0);
+    }
+    // The plugins see the initial state once (zero increment) and report
+    // their wave speeds; a material that rejects its initial state stops here.
+    if (const auto failure = materials.run(sets, 0.0, 0.0, 0, /*add_work=*/false))
+        material_failed(*failure, 0);
+    failed_call.reset(); // the constructor throws: nobody to replay for
+    order.sort(sets);
+}
+
+Simulation::Simulation(Scenario &scenario, SolverOptions options) {
+    par::set_threads(options.threads);
+    impl_ = std::make_unique<Impl>(scenario, options);
+}
+
+Simulation::~Simulation() = default;
+
+void Simulation::step(double max_dt) {
+    Impl &g = *impl_;
+    double dt = std::min(g.time_step(), max_dt);
+    if (!(dt > 0.0))
+        throw Error(fmt::format("step {}: time step {} is not positive", g.step + 1, dt));
+    const double t = g.time;
+    g.step_end = t + dt;
+    g.loads.evaluate(t, dt);
+    {
+        auto tm = g.timer(Phase::reorder);
+        g.order.prepare(g.sets, g.opt.sort_disorder);
+        g.grid.reset();
+    }
+    switch (g.variant) {
+    case StepVariant::usl: g.usl(t, dt); break;
+    case StepVariant::usl_fused: g.usl_fused(t, dt); break;
+    case StepVariant::usf: g.usf(t, dt); break;
+    case StepVariant::musl: g.musl(t, dt); break;
+    case StepVariant::usavg: g.usavg(t, dt); break;
+    }
+    g.time = t + dt;
+    g.last_dt = dt;
+    ++g.step;
+}
+
+// dt = cfl h / max(c_p + |v_p|) (seed 000 eq. 45), from the last pass of the
+// previous step; a fixed dt as given, refused above the stability limit
+// and warned about (once) above the cfl margin.
+double Simulation::Impl::time_step() {
+    auto tm = timer(Phase::time_step);
+    const double dt_crit = max_speed >= 0.0
+                               ? (max_speed > 0.0 ? sc.solver.cfl * sc.cell / max_speed
+                                                  : std::numeric_limits<double>::infinity())
+                               : critical_dt();
+    if (!sc.solver.dt) return dt_crit;
+    const double dt = *sc.solver.dt;
+    // Above h / max(c + |v|) (a Courant number of 1) the explicit step is
+    // unstable and the result is noise: refuse. Between the cfl margin and
+    // that it is the user's call: warn once.
+    check_fixed_dt(dt_crit);
+    if (dt > dt_crit && !warned_dt) {
+        warned_dt = true;
+        warnings.push_back(fmt::format(
+            "step {} (t = {:.6g} s): the fixed dt {:.4g} s exceeds cfl h / max(c + |v|) = {:.4g} "
+            "s (below the stability limit, without the cfl margin)",
+            step + 1, time, dt, dt_crit));
+    }
+    return dt;
+}
+
+double Simulation::Impl::critical_dt() const {
+    struct Max {
+        double v = 0.0;
+        void merge(const Max &o) { v = std::max(v, o.v); }
+    };
+    double worst = 0.0;
+    for (const ParticleSet &s : sets) {
+        const Max m = par::reduce<Max>(s.n, [&](std::size_t p, Max &r) {
+            double v2 = 0.0;
+            for (std::size_t d = 0; d < static_cast<std::size_t>(sc.dim); ++d)
+                v2 += s.v[d][p] * s.v[d][p];
+            r.v = std::max(r.v, s.c[p] + std::sqrt(v2));
+        });
+        worst = std::max(worst, m.v);
+    }
+    return worst > 0.0 ? sc.solver.cfl * sc.cell / worst : std::numeric_limits<double>::infinity();
+}
+
+void Simulation::Impl::check_fixed_dt(double dt_crit) const {
+    if (sc.solver.dt && *sc.solver.dt > dt_crit / sc.solver.cfl)
+        throw Error(sc.solver.dt_origin.error(fmt::format(
+            "{}: the fixed dt {:.4g} s is above the stability limit h / max(c + |v|) = {:.4g} s, "
+            "where the explicit step is unstable; lower solver.dt below cfl times that "
+            "({:.4g} s), or remove it to let cfl choose each step",
+            step == 0 ? std::string("at t = 0")
+                      : fmt::format("step {} (t = {:.6g} s)", step + 1, time),
+            *sc.solver.dt, dt_crit / sc.solver.cfl, dt_crit)));
+}
+
+double Simulation::time() const { return impl_->time; }
+long Simulation::steps() const { return impl_->step; }
+double Simulation::last_dt() const { return impl_->last_dt; }
+double Simulation::critical_dt() const { return impl_->critical_dt(); }
+void Simulation::check_fixed_dt(double dt_crit) const { impl_->check_fixed_dt(dt_crit); }
+void Simulation::fixed_dt_warning_given() { impl_->warned_dt = true; }
+const std::vector<ParticleSet> &Simulation::sets() const { return impl_->sets; }
+std::vector<ParticleSet> &Simulation::sets() { return impl_->sets; }
+const Scenario &Simulation::scenario() const { return impl_->sc; }
+const std::vector<std::string> &Simulation::warnings() const { return impl_->warnings; }
+const std::optional<FailedCall> &Simulation::failed_call() const { return impl_->failed_call; }
+double Simulation::grid_mass() const { return impl_->grid.mass(); }
+int Simulation::max_threads() { return par::max_threads(); }
+
+std::size_t Simulation::particle_count() const {
+    std::size_t n = 0;
+    for (const ParticleSet &s : impl_->sets)
+        n += s.n;
+    return n;
+}
+
+std::array<double, Simulation::kPhases> Simulation::phase_seconds() const {
+    return impl_->phase_seconds;
+}
+
+const char *Simulation::phase_name(int k) {
+    static const char *names[kPhases] = {"time_step",       "reorder",       "p2g",
+                                         "grid_update",     "g2p",           "kinematics",
+                                         "material_update", "move_particles"};
+    return names[k];
+}
+
+} // namespace talus

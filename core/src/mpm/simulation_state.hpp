@@ -1,0 +1,132 @@
+// What a Simulation holds between steps: the typed parts of the method
+// (grid, particles, ordering, boundary, loads, material update), the run's
+// choices made once at set-up, and the counters. The phases of the cycle
+// are member functions that time themselves and hand each kernel the parts
+// it reads and writes; the scheme functions (schemes.cpp) compose them.
+#pragma once
+
+#include "boundary.hpp"
+#include "g2p.hpp"
+#include "grid.hpp"
+#include "kinematics.hpp"
+#include "loads.hpp"
+#include "material_update.hpp"
+#include "move_particles.hpp"
+#include "ordering.hpp"
+#include "p2g.hpp"
+
+#include <talus/mpm/simulation.hpp>
+
+#include <array>
+#include <chrono>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace talus {
+
+// The phases, in the order of a step; Simulation::phase_name gives each the
+// name of the function that runs it.
+enum class Phase {
+    time_step,
+    reorder,
+    p2g,
+    grid_update,
+    g2p,
+    kinematics,
+    material_update,
+    move_particles
+};
+
+// A scheme's step as the run will take it, chosen once at set-up.
+enum class StepVariant {
+    usl,       // USL with cell-averaged dilation: kinematics as a pass of its own
+    usl_fused, // USL: the kinematics inside G2P, the particles moved there
+    usf,
+    musl,
+    usavg
+};
+
+struct Simulation::Impl {
+    Scenario &sc;
+    SolverOptions opt;
+    Grid grid;
+    Boundary boundary;
+    std::vector<std::unique_ptr<MaterialInstance>> instances; // per material used, else null
+    std::vector<ParticleSet> sets;
+    Ordering order;
+    Loads loads;
+    Domain domain;
+    MaterialUpdate materials;
+    DilationCells dilation;
+    StepVariant variant;
+    Motion velocity_motion; // how g2p_velocity moves the particles
+    std::vector<std::string> group_names;
+
+    double time = 0.0, last_dt = 0.0;
+    double step_end = 0.0; // the end time of the step being computed
+    long step = 0, removed = 0, held_at_faces = 0;
+    double held_depth = 0.0;
+    double max_speed = -1.0; // max(c + |v|) from the last step; < 0: not known
+    bool warned_dt = false;
+    std::vector<std::string> warnings;
+    std::optional<FailedCall> failed_call;
+    std::array<double, Simulation::kPhases> phase_seconds{};
+
+    Impl(Scenario &scenario, SolverOptions options);
+
+    // One step of each variant (schemes.cpp).
+    void usl(double t, double dt);
+    void usl_fused(double t, double dt);
+    void usf(double t, double dt);
+    void musl(double t, double dt);
+    void usavg(double t, double dt);
+
+    // The phases, each on the parts it needs.
+    void p2g_momentum();
+    void p2g_forces();
+    void p2g_momentum_and_forces();
+    void p2g_remap();
+    void grid_velocity(double t);
+    void grid_update(double t, double dt);
+    void remapped_velocity(double t_end);
+    void g2p_velocity(double dt, bool store_gradient);
+    void g2p_velocity_and_kinematics(double t, double dt);
+    void g2p_gradient(const double *field, std::size_t offset, std::size_t move_offset,
+                      double move_dt);
+    void kinematics(double t, double dt);
+    void material_update(double t, double dt);
+    void move_particles(PositionStep step);
+
+    double time_step();
+    void check_fixed_dt(double dt_crit) const;
+    double critical_dt() const;
+    // Reports the first failure of a material update as talus::Error.
+    [[noreturn]] void material_failed(const MaterialFailure &f, long step_number);
+    [[noreturn]] void inverted(const Inversion &inv, double t) const;
+
+    P2gSources p2g_sources() const {
+        return {
+            grid.geo, sets, order, loads, sc.solver.shape, sc.solver.transfer != Transfer::flip};
+    }
+    G2pTargets g2p_targets() {
+        return {grid.geo,
+                sets,
+                loads,
+                sc.solver.shape,
+                sc.solver.transfer,
+                sc.solver.transfer == Transfer::flip ? sc.solver.alpha : 0.0};
+    }
+
+    struct Timer {
+        double &total;
+        std::chrono::steady_clock::time_point t0 = std::chrono::steady_clock::now();
+        ~Timer() {
+            total += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        }
+    };
+    Timer timer(Phase p) { return Timer{phase_seconds[static_cast<std::size_t>(p)]}; }
+};
+
+} // namespace talus
