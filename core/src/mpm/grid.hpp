@@ -2,8 +2,9 @@
 // which this process holds a local index box (ghost layers included). Nodes
 // are numbered globally from the domain's first node (0 at the origin,
 // negative in the ghost layers below it); a kernel turns a global node
-// number into a slot of the local records with local(), never assuming the
-// box starts at the domain: an MPI rank will hold only its own part.
+// number into a slot of the local records through the box (first, extent;
+// Stencil::combine), never assuming the box starts at the domain: an MPI
+// rank will hold only its own part.
 #pragma once
 
 #include <talus/mpm/shape_functions.hpp>
@@ -41,12 +42,6 @@ struct GridGeometry {
     // the tent-based kernels, whose affine matrix is the gradient).
     double affine_dinv = 0.0;
 
-    std::size_t local(int i, int j, int k) const {
-        return static_cast<std::size_t>(i - first[0]) +
-               static_cast<std::size_t>(extent[0]) *
-                   (static_cast<std::size_t>(j - first[1]) +
-                    static_cast<std::size_t>(extent[1]) * static_cast<std::size_t>(k - first[2]));
-    }
     // Global node numbers (i, j, k) of a local slot.
     std::array<int, 3> global(std::size_t slot) const;
     // Cell of a coordinate along axis d, clamped into the domain.

@@ -24,7 +24,7 @@ MaterialUpdate::MaterialUpdate(MaterialNames names, int batch_size)
     : names_(std::move(names)), batch_(static_cast<std::size_t>(std::max(1, batch_size))) {}
 
 std::optional<MaterialFailure> MaterialUpdate::run(std::vector<ParticleSet> &sets, double t,
-                                                   double dt, long step, bool add_work) {
+                                                   double dt, long step) {
     // One scratch per thread; the thread count may have changed since the
     // last call (omp_set_num_threads between steps).
     if (scratch_.size() < static_cast<std::size_t>(par::max_threads()))
@@ -41,10 +41,8 @@ std::optional<MaterialFailure> MaterialUpdate::run(std::vector<ParticleSet> &set
                 failed.record(failure);
                 return;
             }
-            if (add_work)
-                for (std::size_t p = begin; p < begin + count; ++p)
-                    s.work[p] +=
-                        0.5 * s.J[p] * s.vol0[p] * stress_work(&s.stress[6 * p], &s.de[6 * p]);
+            for (std::size_t p = begin; p < begin + count; ++p)
+                s.work[p] += 0.5 * s.J[p] * s.vol0[p] * stress_work(&s.stress[6 * p], &s.de[6 * p]);
         });
         const MaterialFailure *first = failed.first();
         for (Scratch &scr : scratch_) {

@@ -41,12 +41,12 @@ class MaterialUpdate {
     MaterialUpdate(MaterialNames names, int batch_size);
 
     // Calls each point's plugin over [t, t + dt] (strain increment, F,
-    // density as the kinematics left them), then, with `add_work`, the
+    // density as the kinematics left them), then the
     // second half of the stress work; swaps F_new into F. `step` is the
     // step being computed (0: the initial state). Returns the first failure
     // (by set and batch), after which no set's F is swapped.
     std::optional<MaterialFailure> run(std::vector<ParticleSet> &sets, double t, double dt,
-                                       long step, bool add_work);
+                                       long step);
     // Plugin cut-step requests honoured by sub-stepping so far.
     long cut_steps() const { return cut_steps_; }
 

@@ -28,10 +28,8 @@ void Ordering::prepare(std::vector<ParticleSet> &sets, double threshold) {
 
 Ordering::Marks Ordering::marks(std::size_t si, std::size_t n) {
     auto &slab = slab_of_[si];
-    if (slab.size() != n) {
-        slab.assign(n, -1);
-        slabs_changed_ = true;
-    }
+    // -1: no slab yet, so every particle counts as having changed slab.
+    if (slab.size() != n) slab.assign(n, -1);
     cell_of_[si].resize(n);
     return {slab.data(), cell_of_[si].data()};
 }

@@ -67,28 +67,28 @@ std::vector<std::array<double, 3>> lattice_points(const Scenario &sc, const Grou
 
 // The stress at t = 0 at height x[D-1]: uniform, or geostatic
 // sigma_v = rho g (surface - height), tension positive, sigma_h = K0 sigma_v.
-void initial_stress(const Scenario &sc, const GroupSpec &gs, double rho0, const double *x,
-                    double *sig) {
+void initial_stress(const Scenario &sc, const GroupSpec &gs, const Box &bounds, double rho0,
+                    const double *x, double *sig) {
     const int D = sc.dim;
     std::fill_n(sig, 6, 0.0);
     if (gs.stress.kind == InitialStress::Kind::uniform)
         std::copy_n(gs.stress.uniform.begin(), 6, sig);
     if (gs.stress.kind != InitialStress::Kind::geostatic) return;
     const std::size_t up = static_cast<std::size_t>(D - 1);
-    const double surface = gs.stress.surface.value_or(gs.shape.bounds(D).max[up]);
+    const double surface = gs.stress.surface.value_or(bounds.max[up]);
     const double sv = rho0 * sc.gravity[up] * std::max(0.0, surface - x[up]);
     for (int d = 0; d < 3; ++d)
         sig[d] = d == D - 1 ? sv : gs.stress.k0 * sv;
 }
 
-// Particle p of set s at x, of group gi: every column at its initial value.
-void place(const Scenario &sc, std::size_t gi, const std::vector<double> &q_init,
+// Particle p of set s at x, of group gi (whose shape's bounding box is bb):
+// every column at its initial value.
+void place(const Scenario &sc, std::size_t gi, const Box &bb, const std::vector<double> &q_init,
            const std::array<double, 3> &x, ParticleSet &s, std::size_t p) {
     const GroupSpec &gs = sc.groups[gi];
     const int D = sc.dim;
     s.group[p] = static_cast<std::int32_t>(gi);
     // v = v0 + w x (x - centre): a rigid motion about the bounding box's centre.
-    const Box bb = gs.shape.bounds(D);
     const Vec3 &w = gs.angular_velocity;
     double r[3] = {0, 0, 0};
     for (std::size_t d = 0; d < static_cast<std::size_t>(D); ++d)
@@ -107,7 +107,7 @@ void place(const Scenario &sc, std::size_t gi, const std::vector<double> &q_init
         s.F[9 * p + a] = s.F_new[9 * p + a] = 1.0;
     s.J[p] = 1.0;
     s.rho[p] = s.rho0;
-    initial_stress(sc, gs, s.rho0, x.data(), &s.stress[6 * p]);
+    initial_stress(sc, gs, bb, s.rho0, x.data(), &s.stress[6 * p]);
     std::copy(q_init.begin(), q_init.end(), s.state.data() + p * s.state_size);
     if (s.has_C) {
         // The affine transfers start from the rigid motion's exact velocity
@@ -175,11 +175,12 @@ generate_particles(const Scenario &sc, ColumnsInUse columns,
         ParticleSet &s = sets[static_cast<std::size_t>(set_of[gs.material])];
         const std::vector<std::array<double, 3>> points = lattice_points(sc, gs);
         const std::vector<double> &q_init = sc.materials[gs.material].spec.initial_state;
+        const Box bb = gs.shape.bounds(sc.dim);
         const std::size_t first = s.n;
         s.resize(first + points.size());
         for (std::size_t k = 0; k < points.size(); ++k) {
             s.id[first + k] = next_id++;
-            place(sc, gi, q_init, points[k], s, first + k);
+            place(sc, gi, bb, q_init, points[k], s, first + k);
         }
     }
     check_selections(sc, sets);

@@ -82,7 +82,7 @@ void Simulation::Impl::material_update(double t, double dt) {
     std::optional<MaterialFailure> failure;
     {
         auto tm = timer(Phase::material_update);
-        failure = materials.run(sets, t, dt, step + 1, /*add_work=*/true);
+        failure = materials.run(sets, t, dt, step + 1);
     }
     if (failure) material_failed(*failure, step + 1);
 }

@@ -103,10 +103,10 @@ Simulation::Impl::Impl(Scenario &scenario, SolverOptions options)
         dilation.div.assign(grid.n_cells, 0.0);
         dilation.vol.assign(grid.n_cells, 0.0);
     }
-    // The plugins see the initial state once (zero increment) and report
-    // their wave speeds; a material that rejects its initial state stops here.
-    if (const auto failure = materials.run(sets, 0.0, 0.0, 0, /*add_work=*/false))
-        material_failed(*failure, 0);
+    // The plugins see the initial state once (zero increment, so no stress
+    // work) and report their wave speeds; a material that rejects its
+    // initial state stops here.
+    if (const auto failure = materials.run(sets, 0.0, 0.0, 0)) material_failed(*failure, 0);
     failed_call.reset(); // the constructor throws: nobody to replay for
     order.sort(sets);
 }
