@@ -16,7 +16,7 @@
 // order and violates no plane. The candidates are tried from the simplest
 // (one plane) to the points, and the first valid one is the return; the
 // regions of the trial space that lead to each are exactly the ones the
-// papers construct from the flow directions (tests/unit/test_mohr_coulomb.cpp
+// papers construct from the flow directions (tests/unit/plugins/test_mohr_coulomb.cpp
 // checks that at most one candidate is valid at random trial stresses).
 //
 // Planes, ordered principal stresses s = (s1, s2, s3), tension positive:

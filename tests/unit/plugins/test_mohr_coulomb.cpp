@@ -5,7 +5,7 @@
 // start stress outside the surface.
 #include "test_paths.hpp"
 
-#include "../../plugins/mohr_coulomb/principal_return.hpp"
+#include "mohr_coulomb/principal_return.hpp"
 
 #include <talus/error.hpp>
 #include <talus/material/plugin_loader.hpp>

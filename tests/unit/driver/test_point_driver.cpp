@@ -86,7 +86,7 @@ TEST(PointDriver, OedometerConfigMatchesClosedForm) {
     NoEnv e;
     talus::PluginRegistry reg;
     const auto root = talus::yaml::load_file(
-        (talus::test::source_dir() / "configs/point/linear_elastic_oedometer.yaml").string());
+        (talus::test::source_dir() / "plugins/linear_elastic/cases/oedometer.yaml").string());
     const talus::PointCase pc = talus::read_point_case(root, reg);
     const auto rows = talus::run_point_case(pc);
     ASSERT_EQ(rows.size(), 41u);
