@@ -106,10 +106,6 @@ bool is_yaml_name(const std::string &s) {
     return ends(".yaml") || ends(".yml");
 }
 
-bool looks_like_library(const std::string &s) {
-    return s.find('/') != std::string::npos || (s.size() > 3 && s.substr(s.size() - 3) == ".so");
-}
-
 } // namespace
 
 int main(int argc, char **argv) {
@@ -386,15 +382,21 @@ int main(int argc, char **argv) {
             return 0;
         }
         if (info->parsed()) {
-            if (looks_like_library(info_target)) {
-                print_library(std::cout, registry.load(info_target));
-                return 0;
+            // A path, or a bare word that names a library file on the search
+            // path, is a library (whose load errors are reported); any other
+            // word is a model id.
+            std::filesystem::path library;
+            if (talus::PluginRegistry::is_path(info_target)) {
+                library = registry.locate(info_target);
+            } else {
+                try {
+                    library = registry.locate(info_target);
+                } catch (const talus::Error &) {
+                }
             }
-            // A bare word is a library name if such a file exists, else a model id.
-            try {
-                print_library(std::cout, registry.load(info_target));
+            if (!library.empty()) {
+                print_library(std::cout, registry.load(library.string()));
                 return 0;
-            } catch (const talus::Error &) {
             }
             const talus::Model &m = registry.find_model(info_target);
             std::cout << fmt::format("(from {} {}, {}; build: {})\n\n", m.library().name(),
@@ -444,22 +446,7 @@ int main(int argc, char **argv) {
                         : fmt::format("a driver case runs with `talus point {}`", check_target)));
             // Resolve a name through the search path, but do not load it
             // here: the checks load it themselves (in a child process).
-            std::filesystem::path file = check_target;
-            if (!looks_like_library(check_target)) {
-                bool found = false;
-                for (const auto &d : registry.search_dirs())
-                    for (const std::string &n :
-                         {check_target, "talus_" + check_target + ".so", check_target + ".so"})
-                        if (!found && std::filesystem::is_regular_file(d / n)) {
-                            file = d / n;
-                            found = true;
-                        }
-                if (!found)
-                    throw talus::Error(fmt::format(
-                        "plugin library '{}' not found on the plugin search path", check_target));
-            } else if (!std::filesystem::exists(file)) {
-                throw talus::Error(fmt::format("{}: plugin library not found", file.string()));
-            }
+            const std::filesystem::path file = registry.locate(check_target);
             const talus::ConformanceReport rep = talus::check_plugin(file, check_opt);
             talus::print_report(std::cout, rep);
             return rep.passed() ? 0 : 1;

@@ -4,9 +4,9 @@
 #include <talus/input/time_function_yaml.hpp>
 #include <talus/io/csv_table.hpp>
 #include <talus/material/cut_step.hpp>
+#include <talus/sdk/kinematics.hpp>
 #include <talus/sdk/voigt.hpp>
 
-#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <Eigen/QR>
 #include <Eigen/SVD>
@@ -593,11 +593,6 @@ std::optional<double> point_quantity(const PointRow &r, const Model &model, int 
 
 namespace {
 
-Mat3 expm_symmetric(const Mat3 &a) {
-    const Eigen::SelfAdjointEigenSolver<Mat3> es(a);
-    return es.eigenvectors() * es.eigenvalues().array().exp().matrix().asDiagonal() *
-           es.eigenvectors().transpose();
-}
 // Rotation by `angle` about the unit vector n (Rodrigues).
 Mat3 rotation(const Eigen::Vector3d &axis, double angle) {
     return Eigen::AngleAxisd(angle, axis.normalized()).toRotationMatrix();
@@ -731,13 +726,13 @@ class Runner {
             if (!lu.isInvertible())
                 fail(st, t0, "the strain conditions do not determine the strain (singular)");
             de = lu.solve(v - A * s.eps);
-            c = call(s, de, expm_symmetric(sdk::stress_to_matrix(de)) * s.F, t0, dt, false);
+            c = call(s, de, sdk::exp_symmetric(sdk::stress_to_matrix(de)) * s.F, t0, dt, false);
             at = classify(c);
         } else {
             at = newton(A, B, v, s, t0, dt, de, c);
         }
         if (at.outcome == Outcome::ok) {
-            s.F = expm_symmetric(sdk::stress_to_matrix(de)) * s.F;
+            s.F = sdk::exp_symmetric(sdk::stress_to_matrix(de)) * s.F;
             s.eps += de;
             s.stress = c.stress;
             s.state = std::move(c.state);
@@ -791,7 +786,7 @@ class Runner {
         double residual = 0.0;
         bool singular = false;
         for (int it = 0; it < 40; ++it) {
-            c = call(s, de, expm_symmetric(sdk::stress_to_matrix(de)) * s.F, t0, dt, tangent);
+            c = call(s, de, sdk::exp_symmetric(sdk::stress_to_matrix(de)) * s.F, t0, dt, tangent);
             if (!c.result.ok()) return classify(c);
             if (!tangent) c.D = fd_tangent(s, de, c.stress, t0, dt);
             const Vec6 R = A * (s.eps + de) + B * c.stress - v;
@@ -846,7 +841,7 @@ class Runner {
             const double h = 1e-8 * std::max(1.0, 1e4 * std::abs(de[j]));
             d[j] += h;
             const Call c =
-                call(s, d, expm_symmetric(sdk::stress_to_matrix(d)) * s.F, t0, dt, false);
+                call(s, d, sdk::exp_symmetric(sdk::stress_to_matrix(d)) * s.F, t0, dt, false);
             D.col(j) = c.result.ok() ? Vec6((c.stress - sig) / h) : Vec6::Zero();
         }
         return D;

@@ -495,29 +495,36 @@ const PluginLibrary &PluginRegistry::add(const fs::path &file) {
     return *libraries_.back();
 }
 
-const PluginLibrary &PluginRegistry::load(const std::string &name_or_path) {
-    const bool explicit_path =
-        name_or_path.find('/') != std::string::npos ||
-        (name_or_path.size() > 3 && name_or_path.compare(name_or_path.size() - 3, 3, ".so") == 0 &&
-         fs::exists(name_or_path));
-    if (explicit_path) {
+bool PluginRegistry::is_path(const std::string &name_or_path) {
+    return name_or_path.find('/') != std::string::npos ||
+           (name_or_path.size() > 3 &&
+            name_or_path.compare(name_or_path.size() - 3, 3, ".so") == 0 &&
+            fs::exists(name_or_path));
+}
+
+fs::path PluginRegistry::locate(const std::string &name_or_path) const {
+    if (is_path(name_or_path)) {
         if (!fs::exists(name_or_path))
             throw Error(fmt::format("{}: plugin library not found", name_or_path));
-        return add(name_or_path);
+        return name_or_path;
     }
-    const std::vector<std::string> names = {name_or_path, "talus_" + name_or_path + ".so",
-                                            name_or_path + ".so"};
+    const std::string names[] = {name_or_path, "talus_" + name_or_path + ".so",
+                                 name_or_path + ".so"};
     std::string tried;
     for (const fs::path &dir : search_dirs())
         for (const std::string &n : names) {
             const fs::path f = dir / n;
             std::error_code ec;
-            if (fs::is_regular_file(f, ec)) return add(f);
-            tried += "\n  " + f.string();
+            if (fs::is_regular_file(f, ec)) return f;
+            fmt::format_to(std::back_inserter(tried), "\n  {}", f.string());
         }
     throw Error(fmt::format("plugin library '{}' not found; looked for:{}\n(add a directory with "
                             "--plugin-path or the TALUS_PLUGIN_PATH environment variable)",
                             name_or_path, tried));
+}
+
+const PluginLibrary &PluginRegistry::load(const std::string &name_or_path) {
+    return add(locate(name_or_path));
 }
 
 void PluginRegistry::load_all() {

@@ -15,7 +15,7 @@ namespace talus {
 
 namespace {
 
-Scenario &checked(Scenario &sc) {
+const Scenario &checked(const Scenario &sc) {
     if (sc.loads.size() > kMaxLoads || sc.particle_velocities.size() > kMaxLoads)
         throw Error(fmt::format("{}: at most {} loads and {} particle_velocities entries", sc.file,
                                 kMaxLoads, kMaxLoads));
@@ -90,7 +90,7 @@ Domain domain_of(const Scenario &sc) {
 
 } // namespace
 
-Simulation::Impl::Impl(Scenario &scenario, SolverOptions options)
+Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options)
     : sc(checked(scenario)), opt(options),
       grid(sc.dim, sc.origin, sc.size, sc.cell, sc.solver.shape), boundary(sc, grid),
       instances(make_instances(sc)), sets(generate_particles(sc, columns_of(sc.solver), instances)),
@@ -111,7 +111,7 @@ Simulation::Impl::Impl(Scenario &scenario, SolverOptions options)
     order.sort(sets);
 }
 
-Simulation::Simulation(Scenario &scenario, SolverOptions options) {
+Simulation::Simulation(const Scenario &scenario, SolverOptions options) {
     par::set_threads(options.threads);
     impl_ = std::make_unique<Impl>(scenario, options);
 }

@@ -49,7 +49,7 @@ enum class StepVariant {
 };
 
 struct Simulation::Impl {
-    Scenario &sc;
+    const Scenario &sc;
     SolverOptions opt;
     Grid grid;
     Boundary boundary;
@@ -74,7 +74,7 @@ struct Simulation::Impl {
     std::optional<FailedCall> failed_call;
     std::array<double, Simulation::kPhases> phase_seconds{};
 
-    Impl(Scenario &scenario, SolverOptions options);
+    Impl(const Scenario &scenario, SolverOptions options);
 
     // One step of each variant (schemes.cpp).
     void usl(double t, double dt);

@@ -271,6 +271,19 @@ TEST(Loader, NaNFromAPluginNeverReachesTheHost) {
     EXPECT_TRUE(contains(r.message, "returned status OK but a non-finite stress")) << r.message;
 }
 
+TEST(Loader, NaNFromAnSdkPluginIsCaughtByTheHostsScreen) {
+    talus::PluginRegistry reg;
+    const talus::Model &m = reg.load(fixture("nan_sdk").string()).models()[0];
+    const double p[] = {1e6};
+    const auto inst = m.create(p);
+    double s[6];
+    const auto r = one_point(*inst, s);
+    EXPECT_EQ(r.status, TALUS_STATUS_FAILED);
+    EXPECT_TRUE(r.host_detected);
+    EXPECT_EQ(r.point, 0);
+    EXPECT_TRUE(contains(r.message, "returned status OK but a non-finite stress")) << r.message;
+}
+
 TEST(Loader, CreateReportsThePluginsRejection) {
     talus::PluginRegistry reg;
     const talus::Model &m = reg.load("linear_elastic").models()[0];

@@ -2,10 +2,10 @@
 #include <talus/plugin_check/conformance.hpp>
 #include <talus/plugin_check/elf_symbols.hpp>
 
+#include <talus/sdk/kinematics.hpp>
 #include <talus/sdk/voigt.hpp>
 
 #include <Eigen/Core>
-#include <Eigen/Eigenvalues>
 #include <fmt/format.h>
 
 #include <cfenv>
@@ -57,16 +57,10 @@ struct Out {
     RowMat6 D = RowMat6::Zero();
 };
 
-Mat3 expm_symmetric(const Mat3 &a) {
-    const Eigen::SelfAdjointEigenSolver<Mat3> es(a);
-    return es.eigenvectors() * es.eigenvalues().array().exp().matrix().asDiagonal() *
-           es.eigenvectors().transpose();
-}
-
 // F at the end of an increment de from F0: the pure stretch exp(de) applied
 // on the left, consistent with the tangent's definition in the ABI.
 RowMat3 advance_F(const RowMat3 &F0, const Vec6 &de) {
-    return RowMat3(expm_symmetric(sdk::strain_to_matrix(de)) * Mat3(F0));
+    return RowMat3(sdk::increment_stretch(de) * Mat3(F0));
 }
 
 // Runs points [begin, begin+n) as one batch. `in_place` makes the end arrays

@@ -164,7 +164,14 @@ class PluginRegistry {
     // The directories searched, in order (existing or not).
     std::vector<std::filesystem::path> search_dirs() const;
 
-    // Load a library by explicit path or by name (see the header comment).
+    // The library file a name or path designates (see the header comment),
+    // without loading it. Throws, listing the places looked at, if there is
+    // none.
+    std::filesystem::path locate(const std::string &name_or_path) const;
+    // True when `name_or_path` is a path (contains '/', or is an existing
+    // file ending in ".so"), false for a name to look up.
+    static bool is_path(const std::string &name_or_path);
+    // Load a library by explicit path or by name (locate()).
     // Loading the same file twice returns the same library. Throws if a model
     // id it offers is already offered by another loaded library.
     const PluginLibrary &load(const std::string &name_or_path);

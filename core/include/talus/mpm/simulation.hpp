@@ -72,8 +72,9 @@ struct FailedCall {
 class Simulation {
   public:
     // Generates the particles of every group and the initial state; calls
-    // each plugin once on the initial state to get wave speeds.
-    Simulation(Scenario &scenario, SolverOptions options = {});
+    // each plugin once on the initial state to get wave speeds. The scenario
+    // is read, never changed, and must outlive the simulation.
+    Simulation(const Scenario &scenario, SolverOptions options = {});
     ~Simulation();
     Simulation(const Simulation &) = delete;
     Simulation &operator=(const Simulation &) = delete;

@@ -410,20 +410,12 @@ struct Descriptors {
                 // (aliasing), so `in` holds the only copy of the inputs.
                 model.update(in, out);
 
+                // The outputs are not screened here: the host screens every
+                // plugin's outputs after the batch (NaN, infinities and
+                // non-positive wave speeds), whether built with this SDK or
+                // not, so one screen serves both.
                 double c = 0.0;
                 if (want_c) c = model.wave_speed(in, out);
-                const double probe_out = nonfinite_probe(out.stress.data(), 6) +
-                                         nonfinite_probe(q1, state_size) + c * 0.0 +
-                                         (want_t ? nonfinite_probe(tangent.data(), 36) : 0.0);
-                if (probe_out != 0.0)
-                    return fail(err, i,
-                                "model produced a non-finite stress, state, wave speed or "
-                                "tangent at point " +
-                                    std::to_string(i));
-                if (want_c && !(c > 0.0))
-                    return fail(err, i,
-                                "model returned a non-positive wave speed at point " +
-                                    std::to_string(i));
                 Eigen::Map<Vec6>(b->stress_end + 6 * k) = out.stress;
                 if (want_c) b->wave_speed[k] = c;
                 if (want_t) Eigen::Map<RowMat6>(b->tangent + 36 * k) = tangent;
