@@ -14,12 +14,6 @@ std::array<int, 3> GridGeometry::global(std::size_t slot) const {
             static_cast<int>(slot / (ex * ey)) + first[2]};
 }
 
-int GridGeometry::cell(int d, double x) const {
-    const std::size_t dd = static_cast<std::size_t>(d);
-    const int c = static_cast<int>(fast_floor((x - origin[dd]) * inv_h));
-    return std::clamp(c, 0, cells[dd] - 1);
-}
-
 std::size_t GridGeometry::cell_index(const double *x) const {
     std::size_t idx = 0, stride = 1;
     for (int d = 0; d < dim; ++d) {

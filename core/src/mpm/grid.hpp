@@ -9,6 +9,7 @@
 
 #include <talus/mpm/shape_functions.hpp>
 
+#include <algorithm>
 #include <array>
 #include <cstddef>
 #include <cstdint>
@@ -44,8 +45,13 @@ struct GridGeometry {
 
     // Global node numbers (i, j, k) of a local slot.
     std::array<int, 3> global(std::size_t slot) const;
-    // Cell of a coordinate along axis d, clamped into the domain.
-    int cell(int d, double x) const;
+    // Cell of a coordinate along axis d, clamped into the domain. Inline:
+    // called per particle and axis at the end of every step.
+    int cell(int d, double x) const {
+        const std::size_t dd = static_cast<std::size_t>(d);
+        const int c = static_cast<int>(fast_floor((x - origin[dd]) * inv_h));
+        return std::clamp(c, 0, cells[dd] - 1);
+    }
     // Cell number (in the domain's cell order) of a position.
     std::size_t cell_index(const double *x) const;
 };

@@ -69,13 +69,6 @@ struct Stencil {
         combine(g, base, w1, dw1, Near ? g1 : nullptr, xi);
     }
 
-    void eval(const GridGeometry &g, const ParticleSet &s, std::size_t p) {
-        if (interior(g, s, p))
-            eval<false>(g, s, p);
-        else
-            eval<true>(g, s, p);
-    }
-
     // Tensor products of the per-axis weights from global node `base`; node
     // points g1 in cells (the nodes themselves when null).
     [[gnu::always_inline]] void combine(const GridGeometry &g, const int *base,
