@@ -8,6 +8,8 @@
 
 #include <fmt/format.h>
 
+#include <sys/resource.h>
+
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -133,6 +135,17 @@ int main(int argc, char **argv) {
                 best = std::min(best, sec);
             }
             const double n = static_cast<double>(sim.particle_count());
+            // Bytes of the particle arrays per particle, and the process's
+            // peak resident memory (grid, ordering and everything else
+            // included) per particle: the case's own peak when it runs
+            // alone (--case), else the largest so far.
+            double particle_bytes = 0.0;
+            for (talus::ParticleSet &set : sim.sets())
+                particle_bytes +=
+                    static_cast<double>(set.bytes_per_particle()) * static_cast<double>(set.n);
+            rusage usage{};
+            getrusage(RUSAGE_SELF, &usage);
+            const double rss = 1024.0 * static_cast<double>(usage.ru_maxrss);
             const int used = talus::Simulation::max_threads();
             if (profile) {
                 const auto ph = sim.phase_seconds();
@@ -144,10 +157,11 @@ int main(int argc, char **argv) {
                                  100.0 * ph[static_cast<std::size_t>(k)] / total);
             }
             std::printf("{\"case\": \"%s\", \"dim\": %d, \"particles\": %zu, \"steps\": %d, "
-                        "\"threads\": %d, "
-                        "\"seconds\": %.4f, \"particle_steps_per_second\": %.4g}\n",
-                        c.name.c_str(), c.dim, sim.particle_count(), steps, used, best,
-                        n * steps / best);
+                        "\"threads\": %d, \"kernels\": \"%s\", "
+                        "\"seconds\": %.4f, \"particle_steps_per_second\": %.4g, "
+                        "\"particle_bytes\": %.0f, \"max_rss_bytes_per_particle\": %.0f}\n",
+                        c.name.c_str(), c.dim, sim.particle_count(), steps, used, sim.kernel_isa(),
+                        best, n * steps / best, particle_bytes / n, rss / n);
             std::fflush(stdout);
         }
     } catch (const std::exception &e) {

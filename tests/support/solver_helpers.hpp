@@ -26,12 +26,15 @@ struct Sim {
     std::unique_ptr<Simulation> sim;
 };
 
+// `edit` changes the scenario as read before the simulation is made.
 inline std::unique_ptr<Sim> make_sim(const yaml::Node &root,
-                                     std::vector<std::filesystem::path> dirs = {}) {
+                                     std::vector<std::filesystem::path> dirs = {},
+                                     const std::function<void(Scenario &)> &edit = {}) {
     unsetenv("TALUS_PLUGIN_PATH");
     auto s = std::make_unique<Sim>();
     s->registry = PluginRegistry(std::move(dirs));
     s->scenario = read_scenario(root, s->registry);
+    if (edit) edit(s->scenario);
     s->sim = std::make_unique<Simulation>(s->scenario);
     return s;
 }
@@ -41,8 +44,9 @@ inline std::unique_ptr<Sim> sim_from_text(const std::string &yaml,
     return make_sim(yaml::load_string(yaml, "test.yaml"), std::move(dirs));
 }
 
-inline std::unique_ptr<Sim> sim_from_config(const std::string &relative) {
-    return make_sim(yaml::load_file((source_dir() / relative).string()));
+inline std::unique_ptr<Sim> sim_from_config(const std::string &relative,
+                                            const std::function<void(Scenario &)> &edit = {}) {
+    return make_sim(yaml::load_file((source_dir() / relative).string()), {}, edit);
 }
 
 // Steps until time t, landing on it exactly; calls `each` after every step.

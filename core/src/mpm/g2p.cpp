@@ -1,5 +1,6 @@
 #include "g2p.hpp"
 
+#include "isa.hpp"
 #include "parallel.hpp"
 #include "stencil.hpp"
 #include "transfer.hpp"
@@ -10,38 +11,48 @@ namespace talus {
 
 namespace {
 
-// Velocity (the FLIP/PIC blend or PIC with an affine matrix), the position
-// step (first order, or second order: x + dt v~ - dt^2/2 a = x + dt (v +
-// v~)/2, see docs/theory.md on eq. 37) and the velocity gradient from v~.
+// The particles [begin, end) of one set (g2p_motion_pass).
 template <int D, class S, class T, bool StoreGradient, bool Kinematics>
-void g2p_motion_pass(const G2pTargets &t, const double *vel, double dt, Motion motion,
-                     par::FirstFailure<Inversion> *inverted) {
-    constexpr bool Gradient = StoreGradient || Kinematics || T::gradient;
-    const GridGeometry &g = t.geo;
-    const double alpha = t.alpha;
-    const bool second = motion == Motion::mean_velocity;
-    const bool move = motion != Motion::none;
-    const bool bspline = g.affine_dinv > 0.0;
-    const Loads &loads = t.loads;
-    using St = Stencil<D, S, T::moments>;
-    for (std::size_t si = 0; si < t.sets.size(); ++si) {
+struct G2pMotionKernel {
+    struct Args {
+        const G2pTargets *t;
+        const double *vel;
+        double dt;
+        Motion motion;
+        par::FirstFailure<Inversion> *inverted;
+        std::size_t set, begin, end;
+    };
+    template <class Lanes>
+    [[gnu::always_inline]] static void run(const Args &args) {
+        constexpr bool Gradient = StoreGradient || Kinematics || T::gradient;
+        const G2pTargets &t = *args.t;
+        const GridGeometry &g = t.geo;
+        const double *vel = args.vel;
+        const double dt = args.dt, alpha = t.alpha;
+        const bool second = args.motion == Motion::mean_velocity;
+        const bool move = args.motion != Motion::none;
+        const bool bspline = g.affine_dinv > 0.0;
+        const Loads &loads = t.loads;
+        const std::size_t si = args.set;
         ParticleSet &s = t.sets[si];
+        par::FirstFailure<Inversion> *inverted = args.inverted;
+        using St = Stencil<D, S>;
         auto body = [&](auto near, std::size_t p) __attribute__((always_inline)) {
             St st;
-            st.template eval<decltype(near)::value>(g, s, p);
-            double vpic[D] = {}, vold[D] = {}, L[D][D] = {}, B[D][D] = {}, step[D];
-            for (int q = 0; q < St::NN; ++q) {
-                const double *rec = vel + node::kRecord * st.idx[q];
-                for (int d = 0; d < D; ++d) {
-                    const double a1 = rec[node::kEndVelocity + static_cast<std::size_t>(d)];
-                    vpic[d] += st.w[q] * a1;
-                    vold[d] += st.w[q] * rec[node::kVelocity + static_cast<std::size_t>(d)];
-                    if constexpr (Gradient)
-                        for (int c = 0; c < D; ++c)
-                            L[d][c] += a1 * st.grad[q][c];
-                    if constexpr (T::moments)
-                        for (int c = 0; c < D; ++c)
-                            B[d][c] += st.w[q] * a1 * st.off[q][c];
+            st.template eval<decltype(near)::value, T::moments>(g, s, p);
+            // Sums over the nodes of the records (v, v~): by the weight,
+            // the gradient and the weighted offset.
+            Lanes sum, dsum[D], osum[D];
+            st.template gather<Gradient, T::moments>(g, vel, sum, dsum, osum);
+            double vpic[D], vold[D], L[D][D], B[D][D], step[D];
+            for (int d = 0; d < D; ++d) {
+                vpic[d] = sum[node::kEndVelocity + static_cast<std::size_t>(d)];
+                vold[d] = sum[node::kVelocity + static_cast<std::size_t>(d)];
+                for (int c = 0; c < D; ++c) {
+                    L[d][c] =
+                        Gradient ? dsum[c][node::kEndVelocity + static_cast<std::size_t>(d)] : 0.0;
+                    B[d][c] = T::moments ? osum[c][node::kEndVelocity + static_cast<std::size_t>(d)]
+                                         : 0.0;
                 }
             }
             double vnew[D];
@@ -78,34 +89,57 @@ void g2p_motion_pass(const G2pTargets &t, const double *vel, double dt, Motion m
         auto near_face = [&](std::size_t p) __attribute__((noinline)) {
             body(std::true_type{}, p);
         };
-        par::for_each(s.n, [&](std::size_t p) {
+        for (std::size_t p = args.begin; p < args.end; ++p) {
             if (St::interior(g, s, p)) [[likely]]
                 body(std::false_type{}, p);
             else
                 near_face(p);
-        });
+        }
     }
+};
+
+// Velocity (the FLIP/PIC blend or PIC with an affine matrix), the position
+// step (first order, or second order: x + dt v~ - dt^2/2 a = x + dt (v +
+// v~)/2, see docs/theory.md on eq. 37) and the velocity gradient from v~.
+template <int D, class S, class T, bool StoreGradient, bool Kinematics>
+void g2p_motion_pass(const G2pTargets &t, const double *vel, double dt, Motion motion,
+                     par::FirstFailure<Inversion> *inverted) {
+    using K = G2pMotionKernel<D, S, T, StoreGradient, Kinematics>;
+    const auto kernel = IsaVersions<K>::pick(t.isa);
+    for (std::size_t si = 0; si < t.sets.size(); ++si)
+        par::for_each_chunk(t.sets[si].n, [&](std::size_t begin, std::size_t end) {
+            kernel(typename K::Args{&t, vel, dt, motion, inverted, si, begin, end});
+        });
 }
 
 template <int D, class S, bool Positions>
-void g2p_gradient_pass(const G2pTargets &t, const double *field, std::size_t offset,
-                       std::size_t move_offset, double move_dt) {
-    const GridGeometry &g = t.geo;
-    using St = Stencil<D, S, false>;
-    for (ParticleSet &s : t.sets) {
+struct G2pGradientKernel {
+    struct Args {
+        const G2pTargets *t;
+        const double *field;
+        std::size_t offset, move_offset;
+        double move_dt;
+        std::size_t set, begin, end;
+    };
+    template <class Lanes>
+    [[gnu::always_inline]] static void run(const Args &args) {
+        const G2pTargets &t = *args.t;
+        const GridGeometry &g = t.geo;
+        const double *field = args.field;
+        const std::size_t offset = args.offset, move_offset = args.move_offset;
+        const double move_dt = args.move_dt;
+        ParticleSet &s = t.sets[args.set];
+        using St = Stencil<D, S>;
         auto body = [&](auto near, std::size_t p) __attribute__((always_inline)) {
             St st;
-            st.template eval<decltype(near)::value>(g, s, p);
-            double L[D][D] = {}, vk[D] = {};
-            for (int q = 0; q < St::NN; ++q) {
-                const double *node = field + node::kRecord * st.idx[q];
-                const double *rec = node + offset;
-                for (int d = 0; d < D; ++d) {
-                    if constexpr (Positions)
-                        vk[d] += st.w[q] * node[move_offset + static_cast<std::size_t>(d)];
-                    for (int c = 0; c < D; ++c)
-                        L[d][c] += rec[d] * st.grad[q][c];
-                }
+            st.template eval<decltype(near)::value, false>(g, s, p);
+            Lanes sum, dsum[D], osum[D];
+            st.template gather<true, false>(g, field, sum, dsum, osum);
+            double L[D][D], vk[D];
+            for (int d = 0; d < D; ++d) {
+                vk[d] = sum[move_offset + static_cast<std::size_t>(d)];
+                for (int c = 0; c < D; ++c)
+                    L[d][c] = dsum[c][offset + static_cast<std::size_t>(d)];
             }
             for (int r = 0; r < D; ++r)
                 for (int c = 0; c < D; ++c)
@@ -120,19 +154,30 @@ void g2p_gradient_pass(const G2pTargets &t, const double *field, std::size_t off
                     s.dx[static_cast<std::size_t>(d)][p] = step[d];
             }
         };
-        // As in g2p_motion_pass: the uniform kernel inline, the clamped one
-        // out of line (a stencil evaluation left to the compiler was not
+        // As in the motion kernel: the uniform kernel inline, the clamped
+        // one out of line (a stencil evaluation left to the compiler was not
         // inlined for the cubic B-spline: 8 % of a USAVG step in a call).
         auto near_face = [&](std::size_t p) __attribute__((noinline)) {
             body(std::true_type{}, p);
         };
-        par::for_each(s.n, [&](std::size_t p) {
+        for (std::size_t p = args.begin; p < args.end; ++p) {
             if (St::interior(g, s, p)) [[likely]]
                 body(std::false_type{}, p);
             else
                 near_face(p);
-        });
+        }
     }
+};
+
+template <int D, class S, bool Positions>
+void g2p_gradient_pass(const G2pTargets &t, const double *field, std::size_t offset,
+                       std::size_t move_offset, double move_dt) {
+    using K = G2pGradientKernel<D, S, Positions>;
+    const auto kernel = IsaVersions<K>::pick(t.isa);
+    for (std::size_t si = 0; si < t.sets.size(); ++si)
+        par::for_each_chunk(t.sets[si].n, [&](std::size_t begin, std::size_t end) {
+            kernel(typename K::Args{&t, field, offset, move_offset, move_dt, si, begin, end});
+        });
 }
 
 } // namespace

@@ -2,6 +2,7 @@
 #pragma once
 
 #include "grid.hpp"
+#include "isa.hpp"
 #include "kinematics.hpp"
 #include "loads.hpp"
 
@@ -20,6 +21,7 @@ struct G2pTargets {
     ShapeKind shape;
     Transfer transfer;
     double alpha; // FLIP fraction (0 for the affine transfers)
+    Isa isa;      // the kernels' instruction set
 };
 
 // How the particles move in the velocity pass (docs/theory.md, "Kinematic

@@ -13,6 +13,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <new>
 #include <vector>
 
 namespace talus {
@@ -56,10 +57,26 @@ struct GridGeometry {
     std::size_t cell_index(const double *x) const;
 };
 
+// Storage for node records starting on a cache-line boundary: a record of
+// 8 doubles is then one line, not two (the heap's large blocks start 16
+// bytes into a page).
+template <class T>
+struct CacheLineAllocator {
+    using value_type = T;
+    static constexpr std::align_val_t kAlign{64};
+    CacheLineAllocator() = default;
+    template <class U>
+    CacheLineAllocator(const CacheLineAllocator<U> &) {}
+    T *allocate(std::size_t n) { return static_cast<T *>(::operator new(n * sizeof(T), kAlign)); }
+    void deallocate(T *p, std::size_t n) { ::operator delete(p, n * sizeof(T), kAlign); }
+    friend bool operator==(const CacheLineAllocator &, const CacheLineAllocator &) { return true; }
+};
+using NodeRecords = std::vector<double, CacheLineAllocator<double>>;
+
 struct Grid {
     GridGeometry geo;
     std::size_t n_nodes = 0, n_cells = 0;
-    std::vector<double> acc, vel; // node records, see node::
+    NodeRecords acc, vel; // node records, see node::
     // Local slots of the nodes on or beyond each face (x-, x+, y-, y+, z-,
     // z+) that carry the face's condition (face_layer of the kernel).
     std::array<std::vector<std::uint32_t>, 6> face_nodes;

@@ -1,89 +1,106 @@
 #include "p2g.hpp"
 
+#include "isa.hpp"
 #include "parallel.hpp"
 #include "stencil.hpp"
 
+#include <cstdint>
 #include <type_traits>
 
 namespace talus {
 
 namespace {
 
+// The particles [begin, end) of set s (indices), with the node-record
+// arithmetic in L (stencil.hpp).
+template <class L, int D, class S, bool Mass, bool Momentum, bool Affine, bool Forces>
+[[gnu::always_inline]] inline void p2g_particles(const P2gSources &src, double *acc,
+                                                 const ParticleSet &s, const std::uint32_t *begin,
+                                                 const std::uint32_t *end) {
+    const GridGeometry &g = src.geo;
+    const double *grav = src.loads.gravity();
+    using St = Stencil<D, S>;
+    auto body = [&](auto near, std::size_t p) __attribute__((always_inline)) {
+        St st;
+        st.template eval<decltype(near)::value, Affine>(g, s, p);
+        const double m = s.mass[p];
+        // Per unit weight: mass and momentum (eqs. 28-29) and the
+        // external force (eq. 21); per unit gradient along c: the
+        // internal force -V sigma[:, c] (eq. 20); per unit weight
+        // and offset along c: the affine momentum m C[:, c].
+        L a{}, grad[D]{}, offs[D]{};
+        if constexpr (Mass) set_lane(a, node::kMass, m);
+        if constexpr (Momentum)
+            for (int d = 0; d < D; ++d)
+                set_lane(a, node::kMomentum + static_cast<std::size_t>(d),
+                         m * s.v[static_cast<std::size_t>(d)][p]);
+        if constexpr (Affine)
+            for (int r = 0; r < D; ++r)
+                for (int c = 0; c < D; ++c)
+                    set_lane(offs[c], node::kMomentum + static_cast<std::size_t>(r),
+                             m * s.C[9 * p + static_cast<std::size_t>(3 * r + c)]);
+        if constexpr (Forces) {
+            const double V = s.J[p] * s.vol0[p];
+            const double *sg = &s.stress[6 * p];
+            // Voigt (xx, yy, zz, xy, yz, zx); the in-plane part for D = 2.
+            constexpr std::size_t f = node::kForce;
+            set_lane(grad[0], f, -V * sg[0]);
+            set_lane(grad[1], f + 1, -V * sg[1]);
+            set_lane(grad[0], f + 1, -V * sg[3]);
+            set_lane(grad[1], f, -V * sg[3]);
+            if constexpr (D == 3) {
+                set_lane(grad[2], f + 2, -V * sg[2]);
+                set_lane(grad[1], f + 2, -V * sg[4]);
+                set_lane(grad[2], f + 1, -V * sg[4]);
+                set_lane(grad[0], f + 2, -V * sg[5]);
+                set_lane(grad[2], f, -V * sg[5]);
+            }
+            double fext[D] = {};
+            if (s.load_mask[p]) src.loads.particle_force<D>(s.load_mask[p], s.group[p], fext);
+            for (int d = 0; d < D; ++d)
+                set_lane(a, f + static_cast<std::size_t>(d), fext[d] + m * grav[d]);
+        }
+        st.template scatter<Forces, Affine>(g, acc, a, grad, offs);
+        // The nodes a fixed particle reaches carry its fixity
+        // (Boundary::apply): a constraint the grid sees.
+        if (const std::uint32_t fixed = Mass ? s.fix_mask[p] : 0u) [[unlikely]]
+            st.for_each_reached_node(g, [&](std::size_t slot, double) {
+                double &bits = acc[node::kRecord * slot + node::kFixity];
+                bits = static_cast<double>(static_cast<std::uint32_t>(bits) | fixed);
+            });
+    };
+    auto near_face = [&](std::size_t p) __attribute__((noinline)) { body(std::true_type{}, p); };
+    for (const std::uint32_t *k = begin; k != end; ++k) {
+        const std::size_t p = *k;
+        if (St::interior(g, s, p)) [[likely]]
+            body(std::false_type{}, p);
+        else
+            near_face(p);
+    }
+}
+
+template <int D, class S, bool Mass, bool Momentum, bool Affine, bool Forces>
+struct P2gKernel {
+    struct Args {
+        const P2gSources *src;
+        double *acc;
+        const ParticleSet *s;
+        const std::uint32_t *begin, *end;
+    };
+    template <class L>
+    [[gnu::always_inline]] static void run(const Args &a) {
+        p2g_particles<L, D, S, Mass, Momentum, Affine, Forces>(*a.src, a.acc, *a.s, a.begin, a.end);
+    }
+};
+
 template <int D, class S, bool Mass, bool Momentum, bool Affine, bool Forces>
 void p2g_pass(const P2gSources &src, double *acc) {
-    const GridGeometry &g = src.geo;
-    const auto &sets = src.sets;
-    const double *grav = src.loads.gravity();
-    using St = Stencil<D, S, Affine>;
+    using K = P2gKernel<D, S, Mass, Momentum, Affine, Forces>;
+    const auto kernel = IsaVersions<K>::pick(src.isa);
     par::for_each_slab_by_colour(src.order.n_slabs(), [&](int slab) {
-        for (std::size_t si = 0; si < sets.size(); ++si) {
-            const ParticleSet &s = sets[si];
-            auto body = [&](auto near, std::size_t p) __attribute__((always_inline)) {
-                St st;
-                st.template eval<decltype(near)::value>(g, s, p);
-                const double m = s.mass[p];
-                double vp[D], Cp[D][D] = {}, Vsig[D][D] = {}, fext[D] = {};
-                for (int d = 0; d < D; ++d)
-                    vp[d] = s.v[static_cast<std::size_t>(d)][p];
-                if constexpr (Affine)
-                    for (int r = 0; r < D; ++r)
-                        for (int c = 0; c < D; ++c)
-                            Cp[r][c] = s.C[9 * p + static_cast<std::size_t>(3 * r + c)];
-                if constexpr (Forces) {
-                    const double V = s.J[p] * s.vol0[p];
-                    const double *sg = &s.stress[6 * p];
-                    // In-plane part of V sigma for D = 2.
-                    Vsig[0][0] = V * sg[0];
-                    Vsig[1][1] = V * sg[1];
-                    Vsig[0][1] = Vsig[1][0] = V * sg[3];
-                    if constexpr (D == 3) {
-                        Vsig[2][2] = V * sg[2];
-                        Vsig[1][2] = Vsig[2][1] = V * sg[4];
-                        Vsig[0][2] = Vsig[2][0] = V * sg[5];
-                    }
-                    if (s.load_mask[p])
-                        src.loads.particle_force<D>(s.load_mask[p], s.group[p], fext);
-                    for (int d = 0; d < D; ++d)
-                        fext[d] += m * grav[d];
-                }
-                const std::uint32_t fixed = Mass ? s.fix_mask[p] : 0u;
-                for (int q = 0; q < St::NN; ++q) {
-                    double *rec = acc + node::kRecord * st.idx[q];
-                    const double mw = m * st.w[q];
-                    if constexpr (Mass) rec[node::kMass] += mw;
-                    // The nodes a fixed particle reaches carry its fixity
-                    // (Boundary::apply): a constraint the grid sees.
-                    if (fixed && st.w[q] > 0.0) [[unlikely]]
-                        rec[node::kFixity] = static_cast<double>(
-                            static_cast<std::uint32_t>(rec[node::kFixity]) | fixed);
-                    for (int d = 0; d < D; ++d) {
-                        if constexpr (Momentum) {
-                            double vq = vp[d];
-                            if constexpr (Affine)
-                                for (int c = 0; c < D; ++c)
-                                    vq += Cp[d][c] * st.off[q][c];
-                            rec[node::kMomentum + static_cast<std::size_t>(d)] += mw * vq;
-                        }
-                        if constexpr (Forces) {
-                            double fi = st.w[q] * fext[d];
-                            for (int c = 0; c < D; ++c)
-                                fi -= Vsig[d][c] * st.grad[q][c];
-                            rec[node::kForce + static_cast<std::size_t>(d)] += fi;
-                        }
-                    }
-                }
-            };
-            auto near_face = [&](std::size_t p) __attribute__((noinline)) {
-                body(std::true_type{}, p);
-            };
+        for (std::size_t si = 0; si < src.sets.size(); ++si) {
             const Ordering::Range r = src.order.slab(si, slab);
-            for (const std::uint32_t *k = r.begin; k != r.end; ++k) {
-                const std::size_t p = *k;
-                if (St::interior(g, s, p)) [[likely]]
-                    body(std::false_type{}, p);
-                else
-                    near_face(p);
-            }
+            kernel(typename K::Args{&src, acc, &src.sets[si], r.begin, r.end});
         }
     });
 }

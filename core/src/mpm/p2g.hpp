@@ -2,6 +2,7 @@
 #pragma once
 
 #include "grid.hpp"
+#include "isa.hpp"
 #include "loads.hpp"
 #include "ordering.hpp"
 
@@ -20,6 +21,7 @@ struct P2gSources {
     const Loads &loads;
     ShapeKind shape;
     bool affine; // APIC / TPIC: momentum carries m C_p (x_i - x_p)
+    Isa isa;     // the kernels' instruction set
 };
 
 // Nodal mass (eq. 28) and momentum with the affine term (eq. 29); the nodes

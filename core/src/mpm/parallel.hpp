@@ -53,6 +53,20 @@ void for_each(std::size_t n, F &&f) {
         f(static_cast<std::size_t>(i));
 }
 
+// f(begin, end) for consecutive chunks of [0, n) in equal static shares:
+// for kernels that run a block of particles per call (one indirect call
+// per chunk, not per particle).
+template <class F>
+void for_each_chunk(std::size_t n, F &&f) {
+    constexpr std::size_t kChunk = 512;
+    const std::ptrdiff_t chunks = static_cast<std::ptrdiff_t>((n + kChunk - 1) / kChunk);
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t c = 0; c < chunks; ++c) {
+        const std::size_t begin = static_cast<std::size_t>(c) * kChunk;
+        f(begin, std::min(n, begin + kChunk));
+    }
+}
+
 // f(b) for blocks b in [0, n_blocks) of uneven cost (material batches: a
 // plastic block costs more than an elastic one), dealt out dynamically.
 template <class F>

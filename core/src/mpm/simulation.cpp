@@ -96,7 +96,7 @@ Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options)
       instances(make_instances(sc)), sets(generate_particles(sc, columns_of(sc.solver), instances)),
       order(grid.geo, sets.size()), loads(sc), domain(domain_of(sc)),
       materials(names_of(sc, sets), opt.batch_size), variant(variant_of(sc.solver)),
-      velocity_motion(velocity_motion_of(sc.solver)) {
+      isa(talus::kernel_isa()), velocity_motion(velocity_motion_of(sc.solver)) {
     for (const GroupSpec &g : sc.groups)
         group_names.push_back(g.name);
     if (sc.solver.cell_averaged_dilation) {
@@ -210,6 +210,7 @@ const std::vector<std::string> &Simulation::warnings() const { return impl_->war
 const std::optional<FailedCall> &Simulation::failed_call() const { return impl_->failed_call; }
 double Simulation::grid_mass() const { return impl_->grid.mass(); }
 int Simulation::max_threads() { return par::max_threads(); }
+const char *Simulation::kernel_isa() const { return isa_name(impl_->isa); }
 
 std::size_t Simulation::particle_count() const {
     std::size_t n = 0;

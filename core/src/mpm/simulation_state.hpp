@@ -61,6 +61,7 @@ struct Simulation::Impl {
     MaterialUpdate materials;
     DilationCells dilation;
     StepVariant variant;
+    Isa isa;                // the transfer kernels' instruction set, the widest this CPU has
     Motion velocity_motion; // how g2p_velocity moves the particles
     std::vector<std::string> group_names;
 
@@ -107,8 +108,8 @@ struct Simulation::Impl {
     [[noreturn]] void inverted(const Inversion &inv, double t) const;
 
     P2gSources p2g_sources() const {
-        return {
-            grid.geo, sets, order, loads, sc.solver.shape, sc.solver.transfer != Transfer::flip};
+        return {grid.geo, sets, order, loads, sc.solver.shape, sc.solver.transfer != Transfer::flip,
+                isa};
     }
     G2pTargets g2p_targets() {
         return {grid.geo,
@@ -116,7 +117,8 @@ struct Simulation::Impl {
                 loads,
                 sc.solver.shape,
                 sc.solver.transfer,
-                sc.solver.transfer == Transfer::flip ? sc.solver.alpha : 0.0};
+                sc.solver.transfer == Transfer::flip ? sc.solver.alpha : 0.0,
+                isa};
     }
 
     struct Timer {

@@ -1,27 +1,96 @@
-// One particle's stencil: the nodes its shape function reaches, with the
-// weights, their gradients and (for the affine transfers) the offsets of
-// the nodes from the particle. Tensor products of the per-axis functions of
-// shape_functions.hpp; the kernels see the domain's bounds (eval_bounded):
-// the B-splines are clamped at the faces (docs/theory.md, "Boundaries").
+// One particle's stencil as the product of its per-axis factors, and the
+// two kernels every transfer is made of: the scatter of a particle's
+// values to its nodes (P2G) and the gather of node records to the particle
+// (G2P).
+//
+// The weights of a tensor-product kernel are w_i = w_x(a) w_y(b) w_z(c) and
+// their gradients (dw_x w_y w_z, w_x dw_y w_z, w_x w_y dw_z); the nodes'
+// offsets from the particle (the affine transfers) are per axis too. The
+// kernels never form the W^D node weights: they sum by factors (the sum
+// factorisation of spectral elements), a row of W nodes along x at a time,
+// with one or two multiply-adds of a whole node record (8 doubles, node::)
+// per node. A record is 8 consecutive doubles and a row is W consecutive
+// records, so the compiler vectorises the per-node work on the portable
+// build (SSE2: 2 doubles) and widens it with -march=native (AVX-512: a
+// record per instruction).
+//
+// The kernels see the domain's bounds (eval_bounded): the B-splines are
+// clamped at the faces (docs/theory.md, "Boundaries"); the clamped weights
+// are still per-axis products, so the same sums serve both.
 #pragma once
 
 #include "grid.hpp"
+#include "isa.hpp"
 
 #include <talus/mpm/particles.hpp>
 #include <talus/mpm/shape_functions.hpp>
 
 #include <cstddef>
+#include <cstring>
 
 namespace talus {
 
-template <int D, class S, bool Offsets = true>
+inline constexpr int kLanes = static_cast<int>(node::kRecord);
+
+// A node record's worth of values: what a particle adds to each field of a
+// node per unit weight, gradient or offset, or what it gathers. Two types
+// with the same arithmetic, and the kernels are compiled with either:
+//
+//   Vec8: one vector of the compiler's vector extension, which it maps onto
+//         the target's widest registers (2 AVX2, 1 AVX-512). Used in the
+//         kernels compiled for those targets (isa.hpp); plain loops over 8
+//         doubles came out as scalar and half-register code there (GCC 12).
+//   Arr8: 8 doubles and loops, for the baseline target (SSE2), where Vec8's
+//         lowering is three times slower than the loops.
+//
+// Both are passed by reference only: a vector by value would change the
+// calling convention with the target's vector width.
+typedef double Vec8 __attribute__((vector_size(8 * sizeof(double))));
+
+struct Arr8 {
+    // Four 2-double vectors: the baseline's registers, one each.
+    typedef double Pair __attribute__((vector_size(2 * sizeof(double))));
+    Pair q[kLanes / 2];
+    [[gnu::always_inline]] double operator[](std::size_t k) const { return q[k / 2][k % 2]; }
+    // A store of one double (an element assignment reads the pair first,
+    // which GCC 12 then reports as a read of an uninitialised value).
+    [[gnu::always_inline]] void set(std::size_t k, double x) {
+        std::memcpy(reinterpret_cast<char *>(q) + k * sizeof(double), &x, sizeof x);
+    }
+    [[gnu::always_inline]] Arr8 &operator+=(const Arr8 &o) {
+        for (int i = 0; i < kLanes / 2; ++i)
+            q[i] += o.q[i];
+        return *this;
+    }
+    [[gnu::always_inline]] friend Arr8 operator*(double s, const Arr8 &a) {
+        Arr8 r;
+        for (int i = 0; i < kLanes / 2; ++i)
+            r.q[i] = s * a.q[i];
+        return r;
+    }
+};
+
+// Lane k of a record's worth of values, for either type.
+[[gnu::always_inline]] inline void set_lane(Vec8 &v, std::size_t k, double x) { v[k] = x; }
+[[gnu::always_inline]] inline void set_lane(Arr8 &v, std::size_t k, double x) { v.set(k, x); }
+
+template <class L>
+[[gnu::always_inline]] inline void load_record(const double *r, L &v) {
+    std::memcpy(&v, r, sizeof v); // one vector load, no aliasing question
+}
+template <class L>
+[[gnu::always_inline]] inline void store_record(double *r, const L &v) {
+    std::memcpy(r, &v, sizeof v);
+}
+
+template <int D, class S>
 struct Stencil {
     static constexpr int W = S::width;
-    static constexpr int NN = D == 2 ? W * W : W * W * W;
-    std::size_t idx[NN]; // local node slots
-    double w[NN];
-    double grad[NN][D];
-    double off[Offsets ? NN : 1][D]; // x_i - x_p, m (x_i: the node's Greville point)
+    int base[D];        // first node per axis (global node numbers)
+    double w[D][W];     // weights per axis
+    double dw[D][W];    // their derivatives, 1/m
+    double off[D][W];   // x_i - x_p per axis, m (x_i: the node's Greville point)
+    double w_off[D][W]; // w * off per axis
     // 1 / D_p per axis, 1/m^2: D_p = sum_i w_ip (x_i - x_p)(x_i - x_p)^T is
     // diagonal for a tensor-product kernel with linear precision (the cross
     // terms factor into sum_a w_a (x_a - x_p) = 0), h^2/4 (quadratic) or
@@ -43,82 +112,164 @@ struct Stencil {
         return inner;
     }
 
-    // Near == false requires interior(g, s, p).
-    template <bool Near>
+    // Near == false requires interior(g, s, p). Offsets: also off, w_off
+    // and dinv (the affine transfers).
+    template <bool Near, bool Offsets>
     [[gnu::always_inline]] void eval(const GridGeometry &g, const ParticleSet &s, std::size_t p) {
-        int base[D];
-        double w1[D][W], dw1[D][W], g1[D][W], xi[D];
         for (int d = 0; d < D; ++d) {
             const std::size_t dd = static_cast<std::size_t>(d);
-            xi[d] = (s.x[dd][p] - g.origin[dd]) * g.inv_h;
+            const double xi = (s.x[dd][p] - g.origin[dd]) * g.inv_h;
+            [[maybe_unused]] double node_point[W];
             if constexpr (Near)
-                S::eval_bounded(xi[d], s.lp[p], g.cells[dd], base[d], w1[d], dw1[d], g1[d]);
+                S::eval_bounded(xi, s.lp[p], g.cells[dd], base[d], w[d], dw[d], node_point);
             else
-                S::eval(xi[d], s.lp[p], base[d], w1[d], dw1[d]);
+                S::eval(xi, s.lp[p], base[d], w[d], dw[d]);
             for (int k = 0; k < W; ++k)
-                dw1[d][k] *= g.inv_h; // d/dx = d/dxi / h, once per axis
+                dw[d][k] *= g.inv_h; // d/dx = d/dxi / h, once per axis
             if constexpr (Offsets) {
+                for (int k = 0; k < W; ++k) {
+                    const double at = Near ? node_point[k] : static_cast<double>(base[d] + k);
+                    off[d][k] = (at - xi) * g.h;
+                    w_off[d][k] = w[d][k] * off[d][k];
+                }
                 if constexpr (Near) {
-                    const double m2 = second_moment<W>(w1[d], g1[d], xi[d]) * g.h * g.h;
+                    const double m2 = second_moment<W>(w[d], node_point, xi) * g.h * g.h;
                     dinv[d] = m2 > 0.0 ? 1.0 / m2 : 0.0;
                 } else {
                     dinv[d] = g.affine_dinv;
                 }
             }
         }
-        combine(g, base, w1, dw1, Near ? g1 : nullptr, xi);
     }
 
-    // Tensor products of the per-axis weights from global node `base`; node
-    // points g1 in cells (the nodes themselves when null).
-    [[gnu::always_inline]] void combine(const GridGeometry &g, const int *base,
-                                        const double (*w1)[W], const double (*dw1)[W],
-                                        const double (*g1)[W], const double *xi) {
-        double o1[D][W];
-        if constexpr (Offsets)
-            for (int d = 0; d < D; ++d)
-                for (int k = 0; k < W; ++k)
-                    o1[d][k] = ((g1 ? g1[d][k] : base[d] + k) - xi[d]) * g.h;
-        // The stencil's first node in the local box, once per axis.
-        int lb[3] = {0, 0, 0};
-        for (int d = 0; d < D; ++d)
-            lb[d] = base[d] - g.first[static_cast<std::size_t>(d)];
+    // The local slot of the stencil's first node, and the slot strides of
+    // its rows (y) and layers (z).
+    struct Slots {
+        std::size_t first, row, layer;
+    };
+    [[gnu::always_inline]] Slots slots(const GridGeometry &g) const {
         const std::size_t ex = static_cast<std::size_t>(g.extent[0]);
         const std::size_t exy = ex * static_cast<std::size_t>(g.extent[1]);
-        auto slot = [&](int a, int b, int c) {
-            return static_cast<std::size_t>(lb[0] + a) + ex * static_cast<std::size_t>(lb[1] + b) +
-                   exy * static_cast<std::size_t>(lb[2] + c);
-        };
-        int q = 0;
-        if constexpr (D == 2) {
-            for (int b = 0; b < W; ++b)
-                for (int a = 0; a < W; ++a, ++q) {
-                    idx[q] = slot(a, b, 0);
-                    w[q] = w1[0][a] * w1[1][b];
-                    grad[q][0] = dw1[0][a] * w1[1][b];
-                    grad[q][1] = w1[0][a] * dw1[1][b];
-                    if constexpr (Offsets) {
-                        off[q][0] = o1[0][a];
-                        off[q][1] = o1[1][b];
-                    }
+        std::size_t first = static_cast<std::size_t>(base[0] - g.first[0]) +
+                            ex * static_cast<std::size_t>(base[1] - g.first[1]);
+        if constexpr (D == 3) first += exy * static_cast<std::size_t>(base[2] - g.first[2]);
+        return {first, ex, exy};
+    }
+
+    // Scatter: every node record gets
+    //   w_i a + sum_d (dw_i/dx_d) grad[d] + w_i sum_d (x_i - x_p)_d off[d]
+    // (Gradients, Offsets: whether grad and off are used).
+    template <bool Gradients, bool Offsets, class Lanes>
+    [[gnu::always_inline]] void scatter(const GridGeometry &g, double *records, const Lanes &a,
+                                        const Lanes (&grad)[D], const Lanes (&offs)[D]) const {
+        const Slots sl = slots(g);
+        for (int c = 0; c < (D == 3 ? W : 1); ++c)
+            for (int b = 0; b < W; ++b) {
+                // The row's factors: what node x of the row gets is
+                // w_x(x) P + dw_x(x) Q + w_x(x) off_x(x) R.
+                const double wz = D == 3 ? w[D - 1][c] : 1.0;
+                const double wyz = w[1][b] * wz;
+                Lanes P = wyz * a, Q{}, R{};
+                if constexpr (Gradients) {
+                    P += (dw[1][b] * wz) * grad[1];
+                    if constexpr (D == 3) P += (w[1][b] * dw[2][c]) * grad[2];
+                    Q = wyz * grad[0];
                 }
-        } else {
-            for (int c = 0; c < W; ++c)
-                for (int b = 0; b < W; ++b)
-                    for (int a = 0; a < W; ++a, ++q) {
-                        idx[q] = slot(a, b, c);
-                        const double wbc = w1[1][b] * w1[2][c];
-                        w[q] = w1[0][a] * wbc;
-                        grad[q][0] = dw1[0][a] * wbc;
-                        grad[q][1] = w1[0][a] * dw1[1][b] * w1[2][c];
-                        grad[q][2] = w1[0][a] * w1[1][b] * dw1[2][c];
-                        if constexpr (Offsets) {
-                            off[q][0] = o1[0][a];
-                            off[q][1] = o1[1][b];
-                            off[q][2] = o1[2][c];
-                        }
-                    }
+                if constexpr (Offsets) {
+                    P += (wyz * off[1][b]) * offs[1];
+                    if constexpr (D == 3) P += (wyz * off[2][c]) * offs[2];
+                    R = wyz * offs[0];
+                }
+                double *row =
+                    records + node::kRecord * (sl.first + static_cast<std::size_t>(b) * sl.row +
+                                               static_cast<std::size_t>(c) * sl.layer);
+                for (int x = 0; x < W; ++x) {
+                    double *rec = row + node::kRecord * static_cast<std::size_t>(x);
+                    Lanes r;
+                    load_record(rec, r);
+                    r += w[0][x] * P;
+                    if constexpr (Gradients) r += dw[0][x] * Q;
+                    if constexpr (Offsets) r += w_off[0][x] * R;
+                    store_record(rec, r);
+                }
+            }
+    }
+
+    // Gather: sum_i w_i r_i into `value`, sum_i (dw_i/dx_d) r_i into
+    // grad[d], and sum_i w_i (x_i - x_p)_d r_i into offs[d], over the node
+    // records r_i (Gradients, Offsets: whether grad and off are wanted).
+    template <bool Gradients, bool Offsets, class Lanes>
+    [[gnu::always_inline]] void gather(const GridGeometry &g, const double *records, Lanes &value,
+                                       Lanes (&grad)[D], Lanes (&offs)[D]) const {
+        const Slots sl = slots(g);
+        value = Lanes{};
+        for (int d = 0; d < D; ++d)
+            grad[d] = offs[d] = Lanes{};
+        for (int c = 0; c < (D == 3 ? W : 1); ++c)
+            for (int b = 0; b < W; ++b) {
+                const double *row =
+                    records + node::kRecord * (sl.first + static_cast<std::size_t>(b) * sl.row +
+                                               static_cast<std::size_t>(c) * sl.layer);
+                // The row's sums over x: by w_x, dw_x and w_x off_x.
+                Lanes S0{}, S1{}, S2{};
+                for (int x = 0; x < W; ++x) {
+                    Lanes r;
+                    load_record(row + node::kRecord * static_cast<std::size_t>(x), r);
+                    S0 += w[0][x] * r;
+                    if constexpr (Gradients) S1 += dw[0][x] * r;
+                    if constexpr (Offsets) S2 += w_off[0][x] * r;
+                }
+                const double wz = D == 3 ? w[D - 1][c] : 1.0;
+                const double wyz = w[1][b] * wz;
+                value += wyz * S0;
+                if constexpr (Gradients) {
+                    grad[0] += wyz * S1;
+                    grad[1] += (dw[1][b] * wz) * S0;
+                    if constexpr (D == 3) grad[2] += (w[1][b] * dw[2][c]) * S0;
+                }
+                if constexpr (Offsets) {
+                    offs[0] += wyz * S2;
+                    offs[1] += (wyz * off[1][b]) * S0;
+                    if constexpr (D == 3) offs[2] += (wyz * off[2][c]) * S0;
+                }
+            }
+    }
+
+    // Calls f(slot, w_i) for every node with w_i > 0 (the rare per-node
+    // work: the fixity a fixed particle gives the nodes it reaches).
+    template <class F>
+    void for_each_reached_node(const GridGeometry &g, F &&f) const {
+        const Slots sl = slots(g);
+        for (int c = 0; c < (D == 3 ? W : 1); ++c)
+            for (int b = 0; b < W; ++b)
+                for (int x = 0; x < W; ++x) {
+                    const double wi = w[0][x] * w[1][b] * (D == 3 ? w[D - 1][c] : 1.0);
+                    if (wi > 0.0)
+                        f(sl.first + static_cast<std::size_t>(x) +
+                              static_cast<std::size_t>(b) * sl.row +
+                              static_cast<std::size_t>(c) * sl.layer,
+                          wi);
+                }
+    }
+};
+
+// The versions of a kernel for each instruction set (isa.hpp): the same
+// source, Impl::run<L>(args), inlined into one function per target and
+// compiled for it. A pass picks one per call (an indirect call per block
+// of particles, never per particle).
+template <class Impl>
+struct IsaVersions {
+    using Args = typename Impl::Args;
+    using Fn = void (*)(const Args &);
+    static void generic(const Args &a) { Impl::template run<Arr8>(a); }
+    TALUS_TARGET_AVX2 static void avx2(const Args &a) { Impl::template run<Vec8>(a); }
+    TALUS_TARGET_AVX512 static void avx512(const Args &a) { Impl::template run<Vec8>(a); }
+    static Fn pick(Isa isa) {
+        if constexpr (TALUS_HAS_ISA_VERSIONS) {
+            if (isa == Isa::avx512) return &avx512;
+            if (isa == Isa::avx2) return &avx2;
         }
+        return &generic;
     }
 };
 

@@ -113,6 +113,9 @@ class Simulation {
     static const char *phase_name(int k);
     // Threads the solver's parallel loops use.
     static int max_threads();
+    // The instruction set of the transfer kernels this run uses (generic,
+    // avx2, avx512): the widest the CPU has, or TALUS_KERNEL_ISA.
+    const char *kernel_isa() const;
 
     // Warnings issued so far (fixed dt above the limit, ...), for the log.
     const std::vector<std::string> &warnings() const;
