@@ -1,7 +1,7 @@
 // talus_bench: particle-steps per second of the explicit MPM cycle, one JSON
 // line per case. Measures; asserts nothing (see bench/README.md).
 //
-//   talus_bench [--steps N] [--repeat R] [--case NAME] [--threads T] [--profile]
+//   talus_bench [--steps N] [--repeat R] [--case NAME] [--threads T[,T...]] [--profile]
 #include <talus/input/scenario_yaml.hpp>
 #include <talus/input/yaml_input.hpp>
 #include <talus/mpm/simulation.hpp>
@@ -31,8 +31,18 @@ struct Case {
 // set-up, the others exercise each scheme, transfer and kernel.
 constexpr const char *kUslFlip =
     "scheme: usl, transfer: {type: flip, alpha: 0.99}, shape: bspline2, cfl: 0.3";
+constexpr const char *kElastic =
+    "{model: linear_elastic, density: 2000, youngs_modulus: 1.0e7, poisson_ratio: 0.3}";
+// Cohesive-frictional soil in its geostatic state (K0 = 0.5) with free
+// sides: within the timed steps the sides and the layer on the floor yield
+// (12 % of the points of a 64k block after 28 steps), the core stays
+// elastic, so batches mix elastic and plastic points.
+constexpr const char *kMohrCoulomb =
+    "{model: mohr_coulomb, density: 2000, youngs_modulus: 1.0e7, poisson_ratio: 0.3, "
+    "friction_angle: 30, dilation_angle: 0, cohesion: 2000}";
 std::string block_yaml(int dim, int nx, int ny, int nz, int ppc, double h,
-                       const std::string &solver = kUslFlip) {
+                       const std::string &solver = kUslFlip,
+                       const std::string &material = kElastic) {
     const double lx = nx * h, ly = ny * h, lz = nz * h;
     const std::string origin = dim == 2 ? "[0, 0]" : "[0, 0, 0]";
     const std::string size = dim == 2
@@ -47,15 +57,15 @@ std::string block_yaml(int dim, int nx, int ny, int nz, int ppc, double h,
     return fmt::format(
         "talus: 1\ndimension: {}\n"
         "grid: {{origin: {}, size: {}, cell: {}}}\n"
-        "materials:\n  soil: {{model: linear_elastic, density: 2000, youngs_modulus: 1.0e7, "
-        "poisson_ratio: 0.3}}\n"
+        "materials:\n  soil: {}\n"
         "groups:\n  block: {{material: soil, particles_per_cell: {}, shape: {{box: {{min: {}, max: "
-        "{}}}}}}}\n"
+        "{}}}}}{}}}\n"
         "boundaries: {{{}: slip}}\n"
         "gravity: {}\n"
         "solver: {{{}}}\n"
         "time: {{end: 1.0}}\n",
-        dim, origin, size, h, ppc, bmin, bmax, floor, g, solver);
+        dim, origin, size, h, material, ppc, bmin, bmax,
+        material == kElastic ? "" : ", initial_stress: {geostatic: {k0: 0.5}}", floor, g, solver);
 }
 
 } // namespace
@@ -63,7 +73,8 @@ std::string block_yaml(int dim, int nx, int ny, int nz, int ppc, double h,
 int main(int argc, char **argv) {
     // 25 steps: the particle re-sort period, so every timed window pays
     // for exactly one sort.
-    int steps = 25, repeat = 3, threads = 0;
+    int steps = 25, repeat = 3;
+    std::vector<int> thread_counts{0}; // 0: OpenMP's default
     bool profile = false;
     std::string only;
     for (int i = 1; i < argc; ++i) {
@@ -79,15 +90,22 @@ int main(int argc, char **argv) {
             steps = std::atoi(next().c_str());
         else if (a == "--repeat")
             repeat = std::atoi(next().c_str());
-        else if (a == "--threads")
-            threads = std::atoi(next().c_str());
-        else if (a == "--case")
+        else if (a == "--threads") {
+            // One count or a list ("1,2"): every case runs with each.
+            thread_counts.clear();
+            const std::string list = next();
+            for (std::size_t b = 0; b <= list.size();) {
+                const std::size_t e = std::min(list.find(',', b), list.size());
+                thread_counts.push_back(std::atoi(list.substr(b, e - b).c_str()));
+                b = e + 1;
+            }
+        } else if (a == "--case")
             only = next();
         else if (a == "--profile")
             profile = true;
         else {
             std::fprintf(stderr, "usage: talus_bench [--steps N] [--repeat R] [--case NAME] "
-                                 "[--threads T] [--profile]\n");
+                                 "[--threads T[,T...]] [--profile]\n");
             return 2;
         }
     }
@@ -113,57 +131,76 @@ int main(int argc, char **argv) {
          block_yaml(3, 32, 32, 32, 2, 0.02,
                     "scheme: usl, transfer: apic, shape: bspline2, cfl: 0.3, "
                     "cell_averaged_dilation: true")},
+        // Mohr-Coulomb with its state variables, elastic core and failing
+        // sides: the plugin's cost beside linear_elastic's.
+        {"3d_block_bspline2_mohr_coulomb", 3,
+         block_yaml(3, 50, 50, 50, 2, 0.02, kUslFlip, kMohrCoulomb)},
+        {"2d_block_bspline2_mohr_coulomb", 2,
+         block_yaml(2, 500, 500, 0, 2, 0.002, kUslFlip, kMohrCoulomb)},
+        // How the cost grows with size: 64k (the grid in cache) to 4M.
+        {"3d_block_64k", 3, block_yaml(3, 20, 20, 20, 2, 0.02)},
+        {"3d_block_4m", 3, block_yaml(3, 80, 80, 80, 2, 0.02)},
+        {"2d_block_64k", 2, block_yaml(2, 128, 128, 0, 2, 0.002)},
+        {"2d_block_4m", 2, block_yaml(2, 1000, 1000, 0, 2, 0.002)},
     };
     try {
-        for (const Case &c : cases) {
-            if (!only.empty() && c.name != only) continue;
-            talus::PluginRegistry registry;
-            const talus::yaml::Node root = talus::yaml::load_string(c.yaml, c.name + ".yaml");
-            talus::Scenario sc = talus::read_scenario(root, registry);
-            talus::SolverOptions so;
-            so.threads = threads;
-            talus::Simulation sim(sc, so);
-            for (int w = 0; w < 2; ++w)
-                sim.step(1.0); // warm caches and the allocator
-            double best = 1e300;
-            for (int r = 0; r < repeat; ++r) {
-                const auto t0 = std::chrono::steady_clock::now();
-                for (int s = 0; s < steps; ++s)
-                    sim.step(1.0);
-                const double sec =
-                    std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-                best = std::min(best, sec);
+        for (const Case &c : cases)
+            for (const int threads : thread_counts) {
+                if (!only.empty() && c.name != only) continue;
+                talus::PluginRegistry registry;
+                const talus::yaml::Node root = talus::yaml::load_string(c.yaml, c.name + ".yaml");
+                talus::Scenario sc = talus::read_scenario(root, registry);
+                talus::SolverOptions so;
+                so.threads = threads;
+                talus::Simulation sim(sc, so);
+                for (int w = 0; w < 2; ++w)
+                    sim.step(1.0); // warm caches and the allocator
+                double best = 1e300;
+                const long regions0 = talus::Simulation::parallel_regions();
+                for (int r = 0; r < repeat; ++r) {
+                    const auto t0 = std::chrono::steady_clock::now();
+                    for (int s = 0; s < steps; ++s)
+                        sim.step(1.0);
+                    const double sec =
+                        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
+                            .count();
+                    best = std::min(best, sec);
+                }
+                const double barriers =
+                    static_cast<double>(talus::Simulation::parallel_regions() - regions0) /
+                    (static_cast<double>(repeat) * steps);
+                const double n = static_cast<double>(sim.particle_count());
+                // Bytes of the particle arrays per particle, and the process's
+                // peak resident memory (grid, ordering and everything else
+                // included) per particle: the case's own peak when it runs
+                // alone (--case), else the largest so far.
+                double particle_bytes = 0.0;
+                for (talus::ParticleSet &set : sim.sets())
+                    particle_bytes +=
+                        static_cast<double>(set.bytes_per_particle()) * static_cast<double>(set.n);
+                rusage usage{};
+                getrusage(RUSAGE_SELF, &usage);
+                const double rss = 1024.0 * static_cast<double>(usage.ru_maxrss);
+                const int used = talus::Simulation::max_threads();
+                if (profile) {
+                    const auto ph = sim.phase_seconds();
+                    double total = 0.0;
+                    for (double v : ph)
+                        total += v;
+                    for (int k = 0; k < talus::Simulation::kPhases; ++k)
+                        std::fprintf(stderr, "  %-28s %6.1f %%\n", talus::Simulation::phase_name(k),
+                                     100.0 * ph[static_cast<std::size_t>(k)] / total);
+                }
+                std::printf("{\"case\": \"%s\", \"dim\": %d, \"particles\": %zu, \"steps\": %d, "
+                            "\"threads\": %d, \"kernels\": \"%s\", "
+                            "\"seconds\": %.4f, \"particle_steps_per_second\": %.4g, "
+                            "\"particle_bytes\": %.0f, \"max_rss_bytes_per_particle\": %.0f, "
+                            "\"barriers_per_step\": %.1f}\n",
+                            c.name.c_str(), c.dim, sim.particle_count(), steps, used,
+                            sim.kernel_isa(), best, n * steps / best, particle_bytes / n, rss / n,
+                            barriers);
+                std::fflush(stdout);
             }
-            const double n = static_cast<double>(sim.particle_count());
-            // Bytes of the particle arrays per particle, and the process's
-            // peak resident memory (grid, ordering and everything else
-            // included) per particle: the case's own peak when it runs
-            // alone (--case), else the largest so far.
-            double particle_bytes = 0.0;
-            for (talus::ParticleSet &set : sim.sets())
-                particle_bytes +=
-                    static_cast<double>(set.bytes_per_particle()) * static_cast<double>(set.n);
-            rusage usage{};
-            getrusage(RUSAGE_SELF, &usage);
-            const double rss = 1024.0 * static_cast<double>(usage.ru_maxrss);
-            const int used = talus::Simulation::max_threads();
-            if (profile) {
-                const auto ph = sim.phase_seconds();
-                double total = 0.0;
-                for (double v : ph)
-                    total += v;
-                for (int k = 0; k < talus::Simulation::kPhases; ++k)
-                    std::fprintf(stderr, "  %-28s %6.1f %%\n", talus::Simulation::phase_name(k),
-                                 100.0 * ph[static_cast<std::size_t>(k)] / total);
-            }
-            std::printf("{\"case\": \"%s\", \"dim\": %d, \"particles\": %zu, \"steps\": %d, "
-                        "\"threads\": %d, \"kernels\": \"%s\", "
-                        "\"seconds\": %.4f, \"particle_steps_per_second\": %.4g, "
-                        "\"particle_bytes\": %.0f, \"max_rss_bytes_per_particle\": %.0f}\n",
-                        c.name.c_str(), c.dim, sim.particle_count(), steps, used, sim.kernel_isa(),
-                        best, n * steps / best, particle_bytes / n, rss / n);
-            std::fflush(stdout);
-        }
     } catch (const std::exception &e) {
         std::fprintf(stderr, "talus_bench: %s\n", e.what());
         return 1;

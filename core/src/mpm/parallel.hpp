@@ -35,6 +35,14 @@ inline int thread_index() {
 #endif
 }
 
+// Parallel regions started so far (each ends in a barrier where every
+// thread waits for the slowest): counted by the loop shapes below, from the
+// thread that starts them, for talus_bench's report.
+inline long &regions() {
+    static long count = 0;
+    return count;
+}
+
 inline void set_threads(int n) {
 #ifdef _OPENMP
     if (n > 0) omp_set_num_threads(n);
@@ -48,6 +56,7 @@ inline void set_threads(int n) {
 template <class F>
 void for_each(std::size_t n, F &&f) {
     const std::ptrdiff_t N = static_cast<std::ptrdiff_t>(n);
+    ++regions();
 #pragma omp parallel for schedule(static)
     for (std::ptrdiff_t i = 0; i < N; ++i)
         f(static_cast<std::size_t>(i));
@@ -60,6 +69,7 @@ template <class F>
 void for_each_chunk(std::size_t n, F &&f) {
     constexpr std::size_t kChunk = 512;
     const std::ptrdiff_t chunks = static_cast<std::ptrdiff_t>((n + kChunk - 1) / kChunk);
+    ++regions();
 #pragma omp parallel for schedule(static)
     for (std::ptrdiff_t c = 0; c < chunks; ++c) {
         const std::size_t begin = static_cast<std::size_t>(c) * kChunk;
@@ -72,6 +82,7 @@ void for_each_chunk(std::size_t n, F &&f) {
 template <class F>
 void for_each_block(std::size_t n_blocks, F &&f) {
     const std::ptrdiff_t N = static_cast<std::ptrdiff_t>(n_blocks);
+    ++regions();
 #pragma omp parallel for schedule(dynamic, 4)
     for (std::ptrdiff_t b = 0; b < N; ++b)
         f(static_cast<std::size_t>(b));
@@ -83,6 +94,7 @@ void for_each_block(std::size_t n_blocks, F &&f) {
 template <class F>
 void for_each_slab_by_colour(int n_slabs, F &&f) {
     for (int colour = 0; colour < 2; ++colour) {
+        ++regions();
 #pragma omp parallel for schedule(dynamic, 1)
         for (int slab = colour; slab < n_slabs; slab += 2)
             f(slab);
@@ -95,6 +107,7 @@ template <class R, class F>
 R reduce(std::size_t n, F &&f) {
     std::vector<R> partial(static_cast<std::size_t>(max_threads()));
     const std::ptrdiff_t N = static_cast<std::ptrdiff_t>(n);
+    ++regions();
 #pragma omp parallel
     {
         // A local partial (registers, once the loop body is inlined), stored

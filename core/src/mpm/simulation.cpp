@@ -211,6 +211,7 @@ const std::optional<FailedCall> &Simulation::failed_call() const { return impl_-
 double Simulation::grid_mass() const { return impl_->grid.mass(); }
 int Simulation::max_threads() { return par::max_threads(); }
 const char *Simulation::kernel_isa() const { return isa_name(impl_->isa); }
+long Simulation::parallel_regions() { return par::regions(); }
 
 std::size_t Simulation::particle_count() const {
     std::size_t n = 0;

@@ -116,6 +116,9 @@ class Simulation {
     // The instruction set of the transfer kernels this run uses (generic,
     // avx2, avx512): the widest the CPU has, or TALUS_KERNEL_ISA.
     const char *kernel_isa() const;
+    // Parallel regions (each ending in a barrier) started by all runs of
+    // this process so far.
+    static long parallel_regions();
 
     // Warnings issued so far (fixed dt above the limit, ...), for the log.
     const std::vector<std::string> &warnings() const;
