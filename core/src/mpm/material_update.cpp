@@ -37,10 +37,21 @@ std::optional<MaterialFailure> MaterialUpdate::run(std::vector<ParticleSet> &set
             Scratch &scr = scratch_[static_cast<std::size_t>(par::thread_index())];
             const std::size_t begin = b * B, count = std::min(B, s.n - begin);
             MaterialFailure failure;
-            if (!call(s, si, begin, count, t, dt, step, 1.0, scr, failure)) {
+            const std::size_t ns = s.state_size;
+            scr.stress.resize(6 * B);
+            scr.state.resize(ns * B);
+            // Stress and state go to scratch and are committed after the
+            // call: the particle's stay the inputs of any retry.
+            const Inputs in{&s.stress[6 * begin], ns ? &s.state[ns * begin] : nullptr,
+                            &s.F[9 * begin],      &s.F_new[9 * begin],
+                            &s.de[6 * begin],     &s.rho[begin]};
+            const Outputs out{scr.stress.data(), ns ? scr.state.data() : nullptr};
+            if (!advance(s, si, begin, count, t, dt, step, 1.0, 0, in, out, scr, failure)) {
                 failed.record(failure);
                 return;
             }
+            std::copy_n(scr.stress.data(), 6 * count, &s.stress[6 * begin]);
+            if (ns) std::copy_n(scr.state.data(), ns * count, &s.state[ns * begin]);
             for (std::size_t p = begin; p < begin + count; ++p)
                 s.work[p] += 0.5 * s.J[p] * s.vol0[p] * stress_work(&s.stress[6 * p], &s.de[6 * p]);
         });
@@ -55,29 +66,31 @@ std::optional<MaterialFailure> MaterialUpdate::run(std::vector<ParticleSet> &set
     return std::nullopt;
 }
 
-// One plugin call for points [begin, begin + count) of set s, in place. A
-// cut-step request is honoured by splitting the increment (strain, and F
-// linearly between start and end) into parts (cut_step.hpp). `fraction`:
-// this increment's share of the step's.
-bool MaterialUpdate::call(ParticleSet &s, std::size_t set, std::size_t begin, std::size_t count,
-                          double t, double dt, long step, double fraction, Scratch &scr,
-                          MaterialFailure &failure) {
+// Advances points [begin, begin + count) of set s over [t, t + dt] from
+// `in` to `out` (which never alias). A cut-step request is honoured by
+// splitting the increment (strain, and F linearly between start and end)
+// into parts (cut_step.hpp), each advanced the same way one level deeper,
+// the parts' results alternating between the level's two buffers and the
+// last one written to `out`. `fraction`: this increment's share of the
+// step's.
+bool MaterialUpdate::advance(ParticleSet &s, std::size_t set, std::size_t begin, std::size_t count,
+                             double t, double dt, long step, double fraction, std::size_t depth,
+                             const Inputs &in, const Outputs &out, Scratch &scr,
+                             MaterialFailure &failure) {
     const std::size_t ns = s.state_size;
-    scr.stress0.assign(s.stress.data() + 6 * begin, s.stress.data() + 6 * (begin + count));
-    scr.state0.assign(s.state.data() + ns * begin, s.state.data() + ns * (begin + count));
     talus_batch b{};
     b.flags = TALUS_BATCH_WANT_WAVE_SPEED;
     b.n_points = count;
     b.time = t;
     b.dt = dt;
-    b.strain_increment = &s.de[6 * begin];
-    b.F_start = &s.F[9 * begin];
-    b.F_end = &s.F_new[9 * begin];
-    b.density = &s.rho[begin];
-    b.stress_start = &s.stress[6 * begin];
-    b.stress_end = &s.stress[6 * begin];
-    b.state_start = ns ? &s.state[ns * begin] : nullptr;
-    b.state_end = ns ? &s.state[ns * begin] : nullptr;
+    b.strain_increment = in.de;
+    b.F_start = in.F_start;
+    b.F_end = in.F_end;
+    b.density = in.rho;
+    b.stress_start = in.stress;
+    b.stress_end = out.stress;
+    b.state_start = ns ? in.state : nullptr;
+    b.state_end = ns ? out.state : nullptr;
     b.wave_speed = &s.c[begin];
     // Whom to blame if the plugin crashes (crash_report.hpp).
     const crash::Task task{names_.material[set],
@@ -89,35 +102,45 @@ bool MaterialUpdate::call(ParticleSet &s, std::size_t set, std::size_t begin, st
     const long parts =
         r.status == TALUS_STATUS_CUT_STEP ? cut_step::parts(r.cut_factor, fraction) : 0;
     if (parts > 0) {
-        // Restore the inputs and sub-step this batch.
-        std::copy(scr.stress0.begin(), scr.stress0.end(), s.stress.data() + 6 * begin);
-        std::copy(scr.state0.begin(), scr.state0.end(), s.state.data() + ns * begin);
-        const std::vector<double> de(s.de.data() + 6 * begin, s.de.data() + 6 * (begin + count));
-        const std::vector<double> Fa(s.F.data() + 9 * begin, s.F.data() + 9 * (begin + count));
-        const std::vector<double> Fb(s.F_new.data() + 9 * begin,
-                                     s.F_new.data() + 9 * (begin + count));
-        const std::vector<double> rho(s.rho.data() + begin, s.rho.data() + begin + count);
+        if (scr.levels.size() <= depth) scr.levels.resize(depth + 1);
+        Level &lv = scr.levels[depth];
+        lv.F_start.resize(9 * count);
+        lv.F_end.resize(9 * count);
+        lv.de.resize(6 * count);
+        lv.rho.resize(count);
+        for (auto *buf : {&lv.stress[0], &lv.stress[1]})
+            buf->resize(6 * count);
+        for (auto *buf : {&lv.state[0], &lv.state[1]})
+            buf->resize(ns * count);
         const double k = static_cast<double>(parts);
+        for (std::size_t p = 0; p < count; ++p)
+            for (std::size_t c = 0; c < 6; ++c)
+                lv.de[6 * p + c] = in.de[6 * p + c] / k;
+        Inputs part = in;
         for (long j = 1; j <= parts; ++j) {
             const double a0 = static_cast<double>(j - 1) / k, a1 = static_cast<double>(j) / k;
             for (std::size_t p = 0; p < count; ++p) {
-                for (std::size_t c = 0; c < 6; ++c)
-                    s.de[6 * (begin + p) + c] = de[6 * p + c] / k;
                 for (std::size_t c = 0; c < 9; ++c) {
-                    const double A = Fa[9 * p + c], Bc = Fb[9 * p + c];
-                    s.F[9 * (begin + p) + c] = A + a0 * (Bc - A);
-                    s.F_new[9 * (begin + p) + c] = A + a1 * (Bc - A);
+                    const double A = in.F_start[9 * p + c], Bc = in.F_end[9 * p + c];
+                    lv.F_start[9 * p + c] = A + a0 * (Bc - A);
+                    lv.F_end[9 * p + c] = A + a1 * (Bc - A);
                 }
-                s.rho[begin + p] = s.rho0 / det3(&s.F_new[9 * (begin + p)]);
+                lv.rho[p] = s.rho0 / det3(&lv.F_end[9 * p]);
             }
-            if (!call(s, set, begin, count, t + a0 * dt, dt / k, step, fraction / k, scr, failure))
+            part.F_start = lv.F_start.data();
+            part.F_end = lv.F_end.data();
+            part.de = lv.de.data();
+            part.rho = lv.rho.data();
+            const std::size_t buf = static_cast<std::size_t>(j % 2);
+            const Outputs to =
+                j == parts ? out
+                           : Outputs{lv.stress[buf].data(), ns ? lv.state[buf].data() : nullptr};
+            if (!advance(s, set, begin, count, t + a0 * dt, dt / k, step, fraction / k, depth + 1,
+                         part, to, scr, failure))
                 return false;
+            part.stress = to.stress;
+            part.state = to.state;
         }
-        // Leave F, F_new, de and rho as they were for the caller.
-        std::copy(de.begin(), de.end(), s.de.data() + 6 * begin);
-        std::copy(Fa.begin(), Fa.end(), s.F.data() + 9 * begin);
-        std::copy(Fb.begin(), Fb.end(), s.F_new.data() + 9 * begin);
-        std::copy(rho.begin(), rho.end(), s.rho.data() + begin);
         ++scr.cuts;
         return true;
     }
@@ -128,10 +151,12 @@ bool MaterialUpdate::call(ParticleSet &s, std::size_t set, std::size_t begin, st
     failure.dt = dt;
     if (r.point >= 0 && static_cast<std::size_t>(r.point) < count) {
         const std::size_t k = static_cast<std::size_t>(r.point);
-        std::copy_n(scr.stress0.begin() + static_cast<std::ptrdiff_t>(6 * k), 6,
-                    failure.stress_in.begin());
-        failure.state_in.assign(scr.state0.begin() + static_cast<std::ptrdiff_t>(ns * k),
-                                scr.state0.begin() + static_cast<std::ptrdiff_t>(ns * (k + 1)));
+        std::copy_n(in.stress + 6 * k, 6, failure.stress_in.begin());
+        std::copy_n(in.de + 6 * k, 6, failure.strain_increment.begin());
+        std::copy_n(in.F_start + 9 * k, 9, failure.F_start.begin());
+        std::copy_n(in.F_end + 9 * k, 9, failure.F_end.begin());
+        failure.density = in.rho[k];
+        if (ns) failure.state_in.assign(in.state + ns * k, in.state + ns * (k + 1));
     }
     failure.result = std::move(r);
     return false;

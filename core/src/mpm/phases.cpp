@@ -129,21 +129,21 @@ void Simulation::Impl::move_particles(PositionStep how) {
     const std::size_t p = f.begin + (at_point ? static_cast<std::size_t>(r.point) : 0);
     const bool cut = r.status == TALUS_STATUS_CUT_STEP;
     if (at_point) {
-        // The failing point's inputs: stress and state as copied before the
-        // call, the rest as the failing (sub-)step left them.
+        // The failing point's inputs, those of the failing part of a cut
+        // step.
         FailedCall fc;
         fc.material = s.material;
         fc.particle = s.id[p];
         fc.step = step_number;
         fc.time = f.t;
         fc.dt = f.dt;
-        fc.density = s.rho[p];
+        fc.density = f.density;
         for (std::size_t c = 0; c < 6; ++c)
-            fc.strain_increment[c] = s.de[6 * p + c];
+            fc.strain_increment[c] = f.strain_increment[c];
         fc.stress = f.stress_in;
         for (std::size_t c = 0; c < 9; ++c) {
-            fc.F_start[c] = s.F[9 * p + c];
-            fc.F_end[c] = s.F_new[9 * p + c];
+            fc.F_start[c] = f.F_start[c];
+            fc.F_end[c] = f.F_end[c];
         }
         fc.state = f.state_in;
         fc.cut_step = cut;
