@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 
 namespace talus {
 
@@ -19,9 +20,27 @@ bool Domain::contains(const ParticleSet &s, std::size_t p, int dim) const {
 }
 
 namespace {
+constexpr std::size_t kNone = static_cast<std::size_t>(-1);
 struct Partial {
     double speed = 0.0, depth = 0.0;
     long outside = 0, moved = 0, held = 0, descents = 0;
+    // The first and last particle this partial saw, with their cells: a
+    // thread's particles are one contiguous range (a static schedule), so
+    // descents are counted inside it as the loop runs and across the
+    // boundaries between ranges when the partials are merged in thread
+    // order, in the same pass (no second loop and its barrier).
+    std::size_t first = kNone, last = kNone;
+    std::uint32_t first_cell = 0, last_cell = 0;
+    void saw(std::size_t p, std::uint32_t cell) {
+        if (last != kNone && p == last + 1) {
+            if (cell < last_cell) ++descents;
+        } else if (first == kNone) {
+            first = p;
+            first_cell = cell;
+        }
+        last = p;
+        last_cell = cell;
+    }
     void merge(const Partial &o) {
         speed = std::max(speed, o.speed);
         depth = std::max(depth, o.depth);
@@ -29,6 +48,14 @@ struct Partial {
         moved += o.moved;
         held += o.held;
         descents += o.descents;
+        if (o.first == kNone) return;
+        if (last != kNone && o.first == last + 1 && o.first_cell < last_cell) ++descents;
+        if (first == kNone) {
+            first = o.first;
+            first_cell = o.first_cell;
+        }
+        last = o.last;
+        last_cell = o.last_cell;
     }
 };
 } // namespace
@@ -79,13 +106,16 @@ StepEnd move_particles(std::vector<ParticleSet> &sets, const GridGeometry &geo,
             r.moved += sl != mark.slab[p] ? 1 : 0;
             mark.slab[p] = sl;
             mark.cell[p] = static_cast<std::uint32_t>(ci);
+            // Particles in a lower cell than their predecessor in memory.
+            r.saw(p, static_cast<std::uint32_t>(ci));
         });
-        total.merge(part);
-        // Particles in a lower cell than their predecessor in memory.
-        const Partial desc = par::reduce<Partial>(s.n, [&](std::size_t p, Partial &r) {
-            if (p > 0 && mark.cell[p] < mark.cell[p - 1]) ++r.descents;
-        });
-        total.descents += desc.descents;
+        // Sets are counted apart: no descent across two sets' arrays.
+        total.speed = std::max(total.speed, part.speed);
+        total.depth = std::max(total.depth, part.depth);
+        total.outside += part.outside;
+        total.moved += part.moved;
+        total.held += part.held;
+        total.descents += part.descents;
     }
     order.marked(total.moved, static_cast<double>(total.descents));
     return {total.speed, total.held, total.depth, total.outside};

@@ -103,6 +103,9 @@ void for_each_slab_by_colour(int n_slabs, F &&f) {
 
 // f(i, partial) for i in [0, n), each thread into its own partial result R
 // (default-constructed), merged after the loop by R::merge(const R &).
+// Each thread's indices are one contiguous increasing range, the ranges in
+// thread order, and the partials are merged in that order (a partial may
+// rely on it to see what happens at the boundaries between ranges).
 template <class R, class F>
 R reduce(std::size_t n, F &&f) {
     std::vector<R> partial(static_cast<std::size_t>(max_threads()));
