@@ -182,23 +182,30 @@ int main(int argc, char **argv) {
                 getrusage(RUSAGE_SELF, &usage);
                 const double rss = 1024.0 * static_cast<double>(usage.ru_maxrss);
                 const int used = talus::Simulation::max_threads();
-                if (profile) {
-                    const auto ph = sim.phase_seconds();
-                    double total = 0.0;
-                    for (double v : ph)
-                        total += v;
-                    for (int k = 0; k < talus::Simulation::kPhases; ++k)
+                // Each phase's share of the time in the step's phases (warm-up
+                // steps included), in the JSON line and with --profile on
+                // stderr as a table.
+                const auto ph = sim.phase_seconds();
+                double total = 0.0;
+                for (double v : ph)
+                    total += v;
+                std::string shares;
+                for (int k = 0; k < talus::Simulation::kPhases; ++k) {
+                    const double share = ph[static_cast<std::size_t>(k)] / total;
+                    shares += fmt::format("{}\"{}\": {:.3f}", k ? ", " : "",
+                                          talus::Simulation::phase_name(k), share);
+                    if (profile)
                         std::fprintf(stderr, "  %-28s %6.1f %%\n", talus::Simulation::phase_name(k),
-                                     100.0 * ph[static_cast<std::size_t>(k)] / total);
+                                     100.0 * share);
                 }
                 std::printf("{\"case\": \"%s\", \"dim\": %d, \"particles\": %zu, \"steps\": %d, "
                             "\"threads\": %d, \"kernels\": \"%s\", "
                             "\"seconds\": %.4f, \"particle_steps_per_second\": %.4g, "
                             "\"particle_bytes\": %.0f, \"max_rss_bytes_per_particle\": %.0f, "
-                            "\"barriers_per_step\": %.1f}\n",
+                            "\"barriers_per_step\": %.1f, \"phase_shares\": {%s}}\n",
                             c.name.c_str(), c.dim, sim.particle_count(), steps, used,
                             sim.kernel_isa(), best, n * steps / best, particle_bytes / n, rss / n,
-                            barriers);
+                            barriers, shares.c_str());
                 std::fflush(stdout);
             }
     } catch (const std::exception &e) {
