@@ -96,7 +96,13 @@ int main(int argc, char **argv) {
             const std::string list = next();
             for (std::size_t b = 0; b <= list.size();) {
                 const std::size_t e = std::min(list.find(',', b), list.size());
-                thread_counts.push_back(std::atoi(list.substr(b, e - b).c_str()));
+                const int n = std::atoi(list.substr(b, e - b).c_str());
+                if (n < 1) {
+                    std::fprintf(stderr, "talus_bench: --threads expects counts >= 1, got '%s'\n",
+                                 list.c_str());
+                    return 2;
+                }
+                thread_counts.push_back(n);
                 b = e + 1;
             }
         } else if (a == "--case")

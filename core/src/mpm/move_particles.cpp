@@ -109,13 +109,11 @@ StepEnd move_particles(std::vector<ParticleSet> &sets, const GridGeometry &geo,
             // Particles in a lower cell than their predecessor in memory.
             r.saw(p, static_cast<std::uint32_t>(ci));
         });
-        // Sets are counted apart: no descent across two sets' arrays.
-        total.speed = std::max(total.speed, part.speed);
-        total.depth = std::max(total.depth, part.depth);
-        total.outside += part.outside;
-        total.moved += part.moved;
-        total.held += part.held;
-        total.descents += part.descents;
+        // Sets are counted apart (no descent across two sets' arrays): the
+        // set's range is forgotten before it joins the total.
+        Partial counts = part;
+        counts.first = counts.last = kNone;
+        total.merge(counts);
     }
     order.marked(total.moved, static_cast<double>(total.descents));
     return {total.speed, total.held, total.depth, total.outside};

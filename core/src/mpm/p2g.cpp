@@ -64,7 +64,7 @@ template <class L, int D, class S, bool Mass, bool Momentum, bool Affine, bool F
         // The nodes a fixed particle reaches carry its fixity
         // (Boundary::apply): a constraint the grid sees.
         if (const std::uint32_t fixed = Mass ? s.fix_mask[p] : 0u) [[unlikely]]
-            st.for_each_reached_node(g, [&](std::size_t slot, double) {
+            st.for_each_reached_node(g, [&](std::size_t slot) {
                 double &bits = acc[node::kRecord * slot + node::kFixity];
                 bits = static_cast<double>(static_cast<std::uint32_t>(bits) | fixed);
             });

@@ -10,9 +10,9 @@
 // factorisation of spectral elements), a row of W nodes along x at a time,
 // with one or two multiply-adds of a whole node record (8 doubles, node::)
 // per node. A record is 8 consecutive doubles and a row is W consecutive
-// records, so the compiler vectorises the per-node work on the portable
-// build (SSE2: 2 doubles) and widens it with -march=native (AVX-512: a
-// record per instruction).
+// records; the record arithmetic is written on vector types (Vec8, Arr8
+// below), and each kernel is compiled once per instruction set
+// (IsaVersions, isa.hpp): on AVX-512 a record is one instruction.
 //
 // The kernels see the domain's bounds (eval_bounded): the B-splines are
 // clamped at the faces (docs/theory.md, "Boundaries"); the clamped weights
@@ -40,8 +40,8 @@ inline constexpr int kLanes = static_cast<int>(node::kRecord);
 //         the target's widest registers (2 AVX2, 1 AVX-512). Used in the
 //         kernels compiled for those targets (isa.hpp); plain loops over 8
 //         doubles came out as scalar and half-register code there (GCC 12).
-//   Arr8: 8 doubles and loops, for the baseline target (SSE2), where Vec8's
-//         lowering is three times slower than the loops.
+//   Arr8: four 2-double vectors, for the baseline target (SSE2), where the
+//         compiler's lowering of Vec8 was three times slower.
 //
 // Both are passed by reference only: a vector by value would change the
 // calling convention with the target's vector width.
@@ -155,6 +155,11 @@ struct Stencil {
         if constexpr (D == 3) first += exy * static_cast<std::size_t>(base[2] - g.first[2]);
         return {first, ex, exy};
     }
+    // The slot of the first node of row b of layer c.
+    [[gnu::always_inline]] static std::size_t row_slot(const Slots &sl, int b, int c) {
+        return sl.first + static_cast<std::size_t>(b) * sl.row +
+               static_cast<std::size_t>(c) * sl.layer;
+    }
 
     // Scatter: every node record gets
     //   w_i a + sum_d (dw_i/dx_d) grad[d] + w_i sum_d (x_i - x_p)_d off[d]
@@ -180,9 +185,7 @@ struct Stencil {
                     if constexpr (D == 3) P += (wyz * off[2][c]) * offs[2];
                     R = wyz * offs[0];
                 }
-                double *row =
-                    records + node::kRecord * (sl.first + static_cast<std::size_t>(b) * sl.row +
-                                               static_cast<std::size_t>(c) * sl.layer);
+                double *row = records + node::kRecord * row_slot(sl, b, c);
                 for (int x = 0; x < W; ++x) {
                     double *rec = row + node::kRecord * static_cast<std::size_t>(x);
                     Lanes r;
@@ -207,9 +210,7 @@ struct Stencil {
             grad[d] = offs[d] = Lanes{};
         for (int c = 0; c < (D == 3 ? W : 1); ++c)
             for (int b = 0; b < W; ++b) {
-                const double *row =
-                    records + node::kRecord * (sl.first + static_cast<std::size_t>(b) * sl.row +
-                                               static_cast<std::size_t>(c) * sl.layer);
+                const double *row = records + node::kRecord * row_slot(sl, b, c);
                 // The row's sums over x: by w_x, dw_x and w_x off_x.
                 Lanes S0{}, S1{}, S2{};
                 for (int x = 0; x < W; ++x) {
@@ -235,21 +236,16 @@ struct Stencil {
             }
     }
 
-    // Calls f(slot, w_i) for every node with w_i > 0 (the rare per-node
-    // work: the fixity a fixed particle gives the nodes it reaches).
+    // Calls f(slot) for every node with w_i > 0 (the rare per-node work:
+    // the fixity a fixed particle gives the nodes it reaches).
     template <class F>
     void for_each_reached_node(const GridGeometry &g, F &&f) const {
         const Slots sl = slots(g);
         for (int c = 0; c < (D == 3 ? W : 1); ++c)
             for (int b = 0; b < W; ++b)
-                for (int x = 0; x < W; ++x) {
-                    const double wi = w[0][x] * w[1][b] * (D == 3 ? w[D - 1][c] : 1.0);
-                    if (wi > 0.0)
-                        f(sl.first + static_cast<std::size_t>(x) +
-                              static_cast<std::size_t>(b) * sl.row +
-                              static_cast<std::size_t>(c) * sl.layer,
-                          wi);
-                }
+                for (int x = 0; x < W; ++x)
+                    if (w[0][x] * w[1][b] * (D == 3 ? w[D - 1][c] : 1.0) > 0.0)
+                        f(row_slot(sl, b, c) + static_cast<std::size_t>(x));
     }
 };
 
