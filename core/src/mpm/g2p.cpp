@@ -5,6 +5,7 @@
 #include "stencil.hpp"
 #include "transfer.hpp"
 
+#include <algorithm>
 #include <type_traits>
 
 namespace talus {
@@ -19,7 +20,7 @@ struct G2pMotionKernel {
         const double *vel;
         double dt;
         Motion motion;
-        par::FirstFailure<Inversion> *inverted;
+        GradientBlocks *blocks;
         std::size_t set, begin, end;
     };
     template <class Lanes>
@@ -35,8 +36,10 @@ struct G2pMotionKernel {
         const Loads &loads = t.loads;
         const std::size_t si = args.set;
         ParticleSet &s = t.sets[si];
-        par::FirstFailure<Inversion> *inverted = args.inverted;
         using St = Stencil<D, S>;
+        // With the update fused in: the block's gradients, 9 per point.
+        double *L_block = Kinematics ? args.blocks->buffer() : nullptr;
+        std::size_t block_begin = args.begin;
         auto body = [&](auto near, std::size_t p) __attribute__((always_inline)) {
             St st;
             st.template eval<decltype(near)::value, T::moments>(g, s, p);
@@ -62,7 +65,10 @@ struct G2pMotionKernel {
                 step[d] = second ? 0.5 * dt * (vpic[d] + vold[d]) : dt * vpic[d];
             }
             if constexpr (Kinematics) {
-                if (!kinematics_point<D>(s, p, &L[0][0], dt, D, false)) inverted->record({si, p});
+                double *Lp = L_block + 9 * (p - block_begin);
+                for (int r = 0; r < D; ++r)
+                    for (int c = 0; c < D; ++c)
+                        Lp[3 * r + c] = L[r][c];
             } else if constexpr (StoreGradient) {
                 for (int r = 0; r < D; ++r)
                     for (int c = 0; c < D; ++c)
@@ -89,11 +95,23 @@ struct G2pMotionKernel {
         auto near_face = [&](std::size_t p) __attribute__((noinline)) {
             body(std::true_type{}, p);
         };
-        for (std::size_t p = args.begin; p < args.end; ++p) {
-            if (St::interior(g, s, p)) [[likely]]
-                body(std::false_type{}, p);
-            else
-                near_face(p);
+        auto points = [&](std::size_t begin, std::size_t end) __attribute__((always_inline)) {
+            for (std::size_t p = begin; p < end; ++p) {
+                if (St::interior(g, s, p)) [[likely]]
+                    body(std::false_type{}, p);
+                else
+                    near_face(p);
+            }
+        };
+        if constexpr (Kinematics) {
+            const std::size_t B = args.blocks->block_size();
+            for (; block_begin < args.end; block_begin += B) {
+                const std::size_t block_end = std::min(args.end, block_begin + B);
+                points(block_begin, block_end);
+                args.blocks->take(si, block_begin, block_end - block_begin);
+            }
+        } else {
+            points(args.begin, args.end);
         }
     }
 };
@@ -103,13 +121,16 @@ struct G2pMotionKernel {
 // v~)/2, see docs/theory.md on eq. 37) and the velocity gradient from v~.
 template <int D, class S, class T, bool StoreGradient, bool Kinematics>
 void g2p_motion_pass(const G2pTargets &t, const double *vel, double dt, Motion motion,
-                     par::FirstFailure<Inversion> *inverted) {
+                     GradientBlocks *blocks) {
     using K = G2pMotionKernel<D, S, T, StoreGradient, Kinematics>;
     const auto kernel = IsaVersions<K>::pick(t.isa);
     for (std::size_t si = 0; si < t.sets.size(); ++si)
-        par::for_each_chunk(t.sets[si].n, [&](std::size_t begin, std::size_t end) {
-            kernel(typename K::Args{&t, vel, dt, motion, inverted, si, begin, end});
-        });
+        par::for_each_chunk(
+            t.sets[si].n,
+            [&](std::size_t begin, std::size_t end) {
+                kernel(typename K::Args{&t, vel, dt, motion, blocks, si, begin, end});
+            },
+            Kinematics ? par::Schedule::dynamic : par::Schedule::equal_shares);
 }
 
 template <int D, class S, bool Positions>
@@ -194,16 +215,13 @@ void g2p_velocity(const G2pTargets &t, const double *vel, double dt, Motion moti
     });
 }
 
-std::optional<Inversion> g2p_velocity_and_kinematics(const G2pTargets &t, const double *vel,
-                                                     double dt, Motion motion) {
-    par::FirstFailure<Inversion> inverted;
+void g2p_velocity_and_update(const G2pTargets &t, const double *vel, double dt, Motion motion,
+                             GradientBlocks &blocks) {
     with_kernel(t.geo.dim, t.shape, [&]<int D, class S>() {
         with_transfer(t.transfer, [&]<class T>() {
-            g2p_motion_pass<D, S, T, false, true>(t, vel, dt, motion, &inverted);
+            g2p_motion_pass<D, S, T, false, true>(t, vel, dt, motion, &blocks);
         });
     });
-    if (const Inversion *first = inverted.first()) return *first;
-    return std::nullopt;
 }
 
 void g2p_gradient(const G2pTargets &t, const double *field, std::size_t offset,

@@ -3,13 +3,12 @@
 
 #include "grid.hpp"
 #include "isa.hpp"
-#include "kinematics.hpp"
 #include "loads.hpp"
 
 #include <talus/mpm/particles.hpp>
 #include <talus/mpm/scenario.hpp>
 
-#include <optional>
+#include <cstddef>
 #include <vector>
 
 namespace talus {
@@ -34,11 +33,28 @@ enum class Motion { none, end_velocity, mean_velocity };
 // gradient from v~ (eq. 38) into ParticleSet::L.
 void g2p_velocity(const G2pTargets &t, const double *vel, double dt, Motion motion,
                   bool store_gradient);
-// The same with the kinematics fused in (USL): L stays in registers and
-// goes straight into kinematics_point, and the particles move at once
-// (x += step, no dx). Returns the first inverted point, if any.
-std::optional<Inversion> g2p_velocity_and_kinematics(const G2pTargets &t, const double *vel,
-                                                     double dt, Motion motion);
+// Where the fused G2P hands the velocity gradients of each block of points
+// it has finished, while their data are in cache: the kinematics and the
+// material update (phases.cpp ties it to MaterialUpdate). One call per
+// block, not per point.
+class GradientBlocks {
+  public:
+    virtual std::size_t block_size() const = 0;
+    // The calling thread's buffer for block_size() gradients, 9 per point
+    // (row-major 3x3; entries outside the D x D block stay zero).
+    virtual double *buffer() = 0;
+    // Points [begin, begin + count) of `set` have their gradients in buffer().
+    virtual void take(std::size_t set, std::size_t begin, std::size_t count) = 0;
+
+  protected:
+    ~GradientBlocks() = default;
+};
+
+// The same with the rest of the particle's step fused in (USL): each block's
+// gradients go to `blocks`, and the particles move at once (x += step, no
+// dx).
+void g2p_velocity_and_update(const G2pTargets &t, const double *vel, double dt, Motion motion,
+                             GradientBlocks &blocks);
 // The velocity gradient (eq. 38) of the velocity at `offset` of the node
 // records `field` into ParticleSet::L, for the schemes whose F follows
 // another field than v~ (USF, MUSL, USAVG). With move_dt > 0 the particle

@@ -28,24 +28,17 @@ struct Inversion {
     }
 };
 
-// One point: F, J, rho, the strain increment, div v, the rotated start
-// stress and (unless deferred) the first half of the stress work. Returns
-// false if the point inverted (J <= 0). L is a row-major 3x3 (Stride 3) or
-// D x D (Stride D). Not inlined: in the fused G2P its ~150 flops are better
-// as a call than as more live registers in the stencil loop (inlined, the
-// 3D USL step was 4 to 8 % slower in talus_bench).
+// F at the end of the step, F1 = (I + dt L) F0 (eq. 39), and its
+// determinant J. L is row-major 3x3 (Stride 3) or D x D (Stride D); in
+// plane strain only the in-plane block of F changes.
 template <int Stride>
-[[gnu::noinline]] bool kinematics_point(ParticleSet &s, std::size_t p, const double *Lg, double dt,
-                                        int dim, bool defer_work) {
+inline double deformation_point(const double *F0, const double *Lg, double dt, int dim,
+                                double *F1) {
     double L[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
     for (int r = 0; r < (Stride == 3 ? 3 : Stride); ++r)
         for (int c = 0; c < (Stride == 3 ? 3 : Stride); ++c)
             L[3 * r + c] = Lg[Stride * r + c];
-    const double *F0 = &s.F[9 * p];
-    double *F1 = &s.F_new[9 * p];
-    double J;
     if (dim == 2) {
-        // Plane strain: only the in-plane block of F changes.
         const double a00 = 1.0 + dt * L[0], a01 = dt * L[1], a10 = dt * L[3], a11 = 1.0 + dt * L[4];
         F1[0] = a00 * F0[0] + a01 * F0[3];
         F1[1] = a00 * F0[1] + a01 * F0[4];
@@ -53,21 +46,37 @@ template <int Stride>
         F1[4] = a10 * F0[1] + a11 * F0[4];
         F1[2] = F1[5] = F1[6] = F1[7] = 0.0;
         F1[8] = F0[8];
-        J = (F1[0] * F1[4] - F1[1] * F1[3]) * F1[8];
-    } else {
-        for (int i = 0; i < 3; ++i)
-            for (int j = 0; j < 3; ++j)
-                F1[3 * i + j] = F0[3 * i + j] + dt * (L[3 * i] * F0[j] + L[3 * i + 1] * F0[3 + j] +
-                                                      L[3 * i + 2] * F0[6 + j]);
-        J = F1[0] * (F1[4] * F1[8] - F1[5] * F1[7]) - F1[1] * (F1[3] * F1[8] - F1[5] * F1[6]) +
-            F1[2] * (F1[3] * F1[7] - F1[4] * F1[6]);
+        return (F1[0] * F1[4] - F1[1] * F1[3]) * F1[8];
     }
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            F1[3 * i + j] = F0[3 * i + j] + dt * (L[3 * i] * F0[j] + L[3 * i + 1] * F0[3 + j] +
+                                                  L[3 * i + 2] * F0[6 + j]);
+    return F1[0] * (F1[4] * F1[8] - F1[5] * F1[7]) - F1[1] * (F1[3] * F1[8] - F1[5] * F1[6]) +
+           F1[2] * (F1[3] * F1[7] - F1[4] * F1[6]);
+}
+
+// Where one point's kinematics go: the material update's per-thread block
+// scratch (nothing of it persists past the step).
+struct PointIncrement {
+    double *F_end; // 9, row-major
+    double *de;    // 6, Voigt with engineering shears
+    double *rho;
+};
+
+// One point from its velocity gradient L (row-major 3x3): F at the end of
+// the step, J (kept in the particle), rho (eq. 41), the strain increment
+// (eq. 42), div v, the rotated start stress and (unless deferred) the first
+// half of the stress work. Returns false if the point inverted (J <= 0).
+inline bool kinematics_point(ParticleSet &s, std::size_t p, const double *L, double dt, int dim,
+                             bool defer_work, const PointIncrement &out) {
+    const double J = deformation_point<3>(&s.F[9 * p], L, dt, dim, out.F_end);
     // A failing J is kept too: the error message and the failure output
     // show the value that failed, not the last valid one.
     s.J[p] = J;
     if (!(J > 0.0)) return false;
-    s.rho[p] = s.rho0 / J;
-    double *de = &s.de[6 * p];
+    *out.rho = s.rho0 / J;
+    double *de = out.de;
     de[0] = dt * L[0];
     de[1] = dt * L[4];
     de[2] = dt * L[8];
@@ -86,11 +95,25 @@ struct DilationCells {
     std::vector<double> div, vol;
 };
 
-// Every point's kinematics from its stored L over dt; with `dilation`, each
-// point's dilation is then replaced by its cell's volume-weighted mean
-// before the first half of the stress work. Returns the first inverted
-// point, if any.
-std::optional<Inversion> kinematics(std::vector<ParticleSet> &sets, const GridGeometry &geo,
-                                    double dt, DilationCells *dilation);
+inline std::size_t cell_of(const GridGeometry &geo, const ParticleSet &s, std::size_t p) {
+    const double x[3] = {s.x[0][p], s.x[1][p], geo.dim == 3 ? s.x[2][p] : 0.0};
+    return geo.cell_index(x);
+}
+
+// The first part of cell-averaged dilation: every point's J at the end of
+// the step and div v from its stored L, then each cell's volume-weighted
+// sums of div v (eq. 53; the cell is the one containing the point). The
+// material update then replaces each point's dilation by its cell's mean
+// (dilation_correction). Returns the first inverted point, if any.
+std::optional<Inversion> dilation_sums(std::vector<ParticleSet> &sets, const GridGeometry &geo,
+                                       double dt, DilationCells &cells);
+
+// Eq. 52: what each normal strain increment in the dim in-plane directions
+// gains so that the point's dilation becomes its cell's mean.
+inline double dilation_correction(const DilationCells &cells, const GridGeometry &geo,
+                                  const ParticleSet &s, std::size_t p, double dt) {
+    const std::size_t c = cell_of(geo, s, p);
+    return dt * (cells.div[c] / cells.vol[c] - s.divv[p]) / geo.dim;
+}
 
 } // namespace talus

@@ -1,12 +1,10 @@
 #include "material_update.hpp"
 
-#include "kinematics.hpp"
-#include "parallel.hpp"
-
 #include <talus/material/crash_report.hpp>
 #include <talus/material/cut_step.hpp>
 
 #include <algorithm>
+#include <chrono>
 
 namespace talus {
 
@@ -23,47 +21,99 @@ double det3(const double *F) {
 MaterialUpdate::MaterialUpdate(MaterialNames names, int batch_size)
     : names_(std::move(names)), batch_(static_cast<std::size_t>(std::max(1, batch_size))) {}
 
-std::optional<MaterialFailure> MaterialUpdate::run(std::vector<ParticleSet> &sets, double t,
-                                                   double dt, long step) {
-    // One scratch per thread; the thread count may have changed since the
-    // last call (omp_set_num_threads between steps).
+void MaterialUpdate::prepare(const std::vector<ParticleSet> &sets) {
+    // The thread count may have changed since the last call
+    // (omp_set_num_threads between steps).
     if (scratch_.size() < static_cast<std::size_t>(par::max_threads()))
         scratch_.resize(static_cast<std::size_t>(par::max_threads()));
-    par::FirstFailure<MaterialFailure> failed;
+    std::size_t ns = 0;
+    for (const ParticleSet &s : sets)
+        ns = std::max<std::size_t>(ns, s.state_size);
+    const std::size_t B = batch_;
+    for (Scratch &scr : scratch_) {
+        if (scr.L.size() == 9 * B && scr.state.size() >= ns * B) continue;
+        scr.L.assign(9 * B, 0.0);
+        scr.F_end.resize(9 * B);
+        scr.de.resize(6 * B);
+        scr.rho.resize(B);
+        scr.stress.resize(6 * B);
+        scr.state.resize(ns * B);
+    }
+}
+
+void MaterialUpdate::run(std::vector<ParticleSet> &sets, const Increment &inc, bool stored_L,
+                         UpdateFailures &failures) {
+    prepare(sets);
+    static const double zero_L[9] = {};
     for (std::size_t si = 0; si < sets.size(); ++si) {
         ParticleSet &s = sets[si];
         const std::size_t B = batch_;
         par::for_each_block((s.n + B - 1) / B, [&](std::size_t b) {
-            Scratch &scr = scratch_[static_cast<std::size_t>(par::thread_index())];
             const std::size_t begin = b * B, count = std::min(B, s.n - begin);
-            MaterialFailure failure;
-            const std::size_t ns = s.state_size;
-            scr.stress.resize(6 * B);
-            scr.state.resize(ns * B);
-            // Stress and state go to scratch and are committed after the
-            // call: the particle's stay the inputs of any retry.
-            const Inputs in{&s.stress[6 * begin], ns ? &s.state[ns * begin] : nullptr,
-                            &s.F[9 * begin],      &s.F_new[9 * begin],
-                            &s.de[6 * begin],     &s.rho[begin]};
-            const Outputs out{scr.stress.data(), ns ? scr.state.data() : nullptr};
-            if (!advance(s, si, begin, count, t, dt, step, 1.0, 0, in, out, scr, failure)) {
-                failed.record(failure);
-                return;
-            }
-            std::copy_n(scr.stress.data(), 6 * count, &s.stress[6 * begin]);
-            if (ns) std::copy_n(scr.state.data(), ns * count, &s.state[ns * begin]);
-            for (std::size_t p = begin; p < begin + count; ++p)
-                s.work[p] += 0.5 * s.J[p] * s.vol0[p] * stress_work(&s.stress[6 * p], &s.de[6 * p]);
+            const double *L = stored_L ? &s.L[9 * begin] : zero_L;
+            block(s, si, begin, count, L, stored_L ? 9 : 0, inc, failures);
         });
-        const MaterialFailure *first = failed.first();
-        for (Scratch &scr : scratch_) {
-            cut_steps_ += scr.cuts;
-            scr.cuts = 0;
-        }
-        if (first) return *first;
-        std::swap(s.F, s.F_new);
     }
-    return std::nullopt;
+}
+
+double *MaterialUpdate::gradient_buffer() {
+    return scratch_[static_cast<std::size_t>(par::thread_index())].L.data();
+}
+
+double MaterialUpdate::collect() {
+    double seconds = 0.0;
+    for (Scratch &scr : scratch_) {
+        cut_steps_ += scr.cuts;
+        scr.cuts = 0;
+        seconds += scr.seconds;
+        scr.seconds = 0.0;
+    }
+    return seconds / par::max_threads();
+}
+
+void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, std::size_t count,
+                           const double *L, std::size_t L_stride, const Increment &inc,
+                           UpdateFailures &failures) {
+    const auto t0 = std::chrono::steady_clock::now();
+    Scratch &scr = scratch_[static_cast<std::size_t>(par::thread_index())];
+    const bool dilation = inc.dilation != nullptr;
+    for (std::size_t k = 0; k < count; ++k) {
+        const std::size_t p = begin + k;
+        double *de = &scr.de[6 * k];
+        if (!kinematics_point(s, p, L + L_stride * k, inc.dt, s.dim, dilation,
+                              {&scr.F_end[9 * k], de, &scr.rho[k]})) {
+            failures.inverted.record({set, p});
+            return;
+        }
+        if (dilation) {
+            // Eq. 52, then the first half of the stress work with the
+            // averaged increment.
+            const double corr = dilation_correction(*inc.dilation, *inc.geo, s, p, inc.dt);
+            for (int d = 0; d < s.dim; ++d)
+                de[d] += corr;
+            s.work[p] += 0.5 * s.J[p] * s.vol0[p] * stress_work(&s.stress[6 * p], de);
+        }
+    }
+    // Stress and state go to scratch and are committed after the call: the
+    // particle's stay the inputs of any retry.
+    const std::size_t ns = s.state_size;
+    const Inputs in{&s.stress[6 * begin], ns ? &s.state[ns * begin] : nullptr,
+                    &s.F[9 * begin],      scr.F_end.data(),
+                    scr.de.data(),        scr.rho.data()};
+    const Outputs out{scr.stress.data(), ns ? scr.state.data() : nullptr};
+    MaterialFailure failure;
+    if (!advance(s, set, begin, count, inc.t, inc.dt, inc.step, 1.0, 0, in, out, scr, failure)) {
+        failures.material.record(failure);
+        return;
+    }
+    std::copy_n(scr.stress.data(), 6 * count, &s.stress[6 * begin]);
+    if (ns) std::copy_n(scr.state.data(), ns * count, &s.state[ns * begin]);
+    std::copy_n(scr.F_end.data(), 9 * count, &s.F[9 * begin]);
+    for (std::size_t k = 0; k < count; ++k) {
+        const std::size_t p = begin + k;
+        s.work[p] += 0.5 * s.J[p] * s.vol0[p] * stress_work(&s.stress[6 * p], &scr.de[6 * k]);
+    }
+    scr.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 // Advances points [begin, begin + count) of set s over [t, t + dt] from

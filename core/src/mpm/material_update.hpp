@@ -1,7 +1,14 @@
-// The material update (seed 000 phase 3, the constitutive part): every
-// point's stress and state advanced by its material's plugin through the
-// C ABI, in batches of points of one material spread over the threads.
+// The material update (seed 000 phase 3): per block of points of one
+// material, the kinematics from each point's velocity gradient into
+// per-thread scratch, the plugin call through the C ABI (stress and state
+// written out of place), and the commit of stress, state and F. One pass
+// over the points; the strain increment, density and end F never live in
+// the particle arrays.
 #pragma once
+
+#include "grid.hpp"
+#include "kinematics.hpp"
+#include "parallel.hpp"
 
 #include <talus/material/plugin_loader.hpp>
 #include <talus/mpm/particles.hpp>
@@ -40,23 +47,59 @@ struct MaterialNames {
     std::vector<const char *> group;    // per group
 };
 
+// What one material update covers.
+struct Increment {
+    double t = 0.0, dt = 0.0;
+    long step = 0; // the step being computed (0: the initial state)
+    // With cell-averaged dilation: the cells' sums (dilation_sums) and the
+    // grid that locates the points' cells.
+    const DilationCells *dilation = nullptr;
+    const GridGeometry *geo = nullptr;
+};
+
+// The first failures of an update pass, the same whatever the thread count:
+// an inverted point (its block's plugin is not called) and a failed call.
+struct UpdateFailures {
+    par::FirstFailure<Inversion> inverted;
+    par::FirstFailure<MaterialFailure> material;
+};
+
 class MaterialUpdate {
   public:
     MaterialUpdate(MaterialNames names, int batch_size);
 
-    // Calls each point's plugin over [t, t + dt] (strain increment, F,
-    // density as the kinematics left them), then the
-    // second half of the stress work; swaps F_new into F. `step` is the
-    // step being computed (0: the initial state). Returns the first failure
-    // (by set and batch), after which no set's F is swapped.
-    std::optional<MaterialFailure> run(std::vector<ParticleSet> &sets, double t, double dt,
-                                       long step);
+    // Points per block (the plugin's batch).
+    std::size_t block_size() const { return batch_; }
+    // Grows the per-thread scratch for these sets and the current thread
+    // count; before any parallel use of block() or gradient_buffer().
+    void prepare(const std::vector<ParticleSet> &sets);
+
+    // Every point of every set over `inc`, from its stored velocity
+    // gradient (ParticleSet::L), or with `stored_L` false from L = 0 (the
+    // initial state: with dt = 0 the plugins see a zero increment).
+    void run(std::vector<ParticleSet> &sets, const Increment &inc, bool stored_L,
+             UpdateFailures &failures);
+    // Points [begin, begin + count) of set s, count <= block_size(), with
+    // velocity gradients L (row-major 3x3, L_stride apart): kinematics, the
+    // plugin call (sub-stepped on a cut-step request), then stress, state, F
+    // and the stress work committed. Called from any thread.
+    void block(ParticleSet &s, std::size_t set, std::size_t begin, std::size_t count,
+               const double *L, std::size_t L_stride, const Increment &inc,
+               UpdateFailures &failures);
+    // The calling thread's buffer for a block's gradients: block_size() x 9,
+    // zero where never written.
+    double *gradient_buffer();
+
     // Plugin cut-step requests honoured by sub-stepping so far.
     long cut_steps() const { return cut_steps_; }
+    // Seconds the threads spent in block() since the last call, divided by
+    // the thread count (the phase's share of a pass it is fused into); also
+    // adds up the threads' cut steps.
+    double collect();
 
   private:
-    // One call's inputs and where its outputs go: the particle arrays, or a
-    // part of a cut step in scratch.
+    // One call's inputs and where its outputs go: the particle arrays and
+    // block scratch, or a part of a cut step in scratch.
     struct Inputs {
         const double *stress, *state, *F_start, *F_end, *de, *rho;
     };
@@ -68,11 +111,14 @@ class MaterialUpdate {
     struct Level {
         std::vector<double> F_start, F_end, de, rho, stress[2], state[2];
     };
-    // Per thread, grown once to the batch size: no allocation in a step.
+    // Per thread, sized once by prepare(): no allocation in a step.
     struct Scratch {
-        std::vector<double> stress, state; // the batch's outputs before commit
+        std::vector<double> L;              // a fused G2P's gradients
+        std::vector<double> F_end, de, rho; // the block's kinematics
+        std::vector<double> stress, state;  // the block's outputs before commit
         std::deque<Level> levels; // grown at the end while deeper levels run: references hold
         long cuts = 0;
+        double seconds = 0.0;
     };
     bool advance(ParticleSet &s, std::size_t set, std::size_t begin, std::size_t count, double t,
                  double dt, long step, double fraction, std::size_t depth, const Inputs &in,

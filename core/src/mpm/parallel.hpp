@@ -62,14 +62,25 @@ void for_each(std::size_t n, F &&f) {
         f(static_cast<std::size_t>(i));
 }
 
-// f(begin, end) for consecutive chunks of [0, n) in equal static shares:
-// for kernels that run a block of particles per call (one indirect call
-// per chunk, not per particle).
+// f(begin, end) for consecutive chunks of [0, n): for kernels that run a
+// block of particles per call (one indirect call per chunk, not per
+// particle). In equal static shares, or dealt out dynamically when chunks
+// cost unevenly (a G2P with the material update fused in: a plastic chunk
+// costs more than an elastic one).
+enum class Schedule { equal_shares, dynamic };
 template <class F>
-void for_each_chunk(std::size_t n, F &&f) {
+void for_each_chunk(std::size_t n, F &&f, Schedule schedule = Schedule::equal_shares) {
     constexpr std::size_t kChunk = 512;
     const std::ptrdiff_t chunks = static_cast<std::ptrdiff_t>((n + kChunk - 1) / kChunk);
     ++regions();
+    if (schedule == Schedule::dynamic) {
+#pragma omp parallel for schedule(dynamic, 2)
+        for (std::ptrdiff_t c = 0; c < chunks; ++c) {
+            const std::size_t begin = static_cast<std::size_t>(c) * kChunk;
+            f(begin, std::min(n, begin + kChunk));
+        }
+        return;
+    }
 #pragma omp parallel for schedule(static)
     for (std::ptrdiff_t c = 0; c < chunks; ++c) {
         const std::size_t begin = static_cast<std::size_t>(c) * kChunk;

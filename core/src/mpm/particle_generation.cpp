@@ -104,9 +104,8 @@ void place(const Scenario &sc, std::size_t gi, const Box &bb, const std::vector<
     s.mass[p] = s.rho0 * V0;
     s.lp[p] = 0.5 / gs.particles_per_cell;
     for (std::size_t a = 0; a < 9; a += 4)
-        s.F[9 * p + a] = s.F_new[9 * p + a] = 1.0;
+        s.F[9 * p + a] = 1.0;
     s.J[p] = 1.0;
-    s.rho[p] = s.rho0;
     initial_stress(sc, gs, bb, s.rho0, x.data(), &s.stress[6 * p]);
     std::copy(q_init.begin(), q_init.end(), s.state.data() + p * s.state_size);
     if (s.has_C) {

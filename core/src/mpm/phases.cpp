@@ -52,14 +52,43 @@ void Simulation::Impl::g2p_velocity(double dt, bool store_gradient) {
     talus::g2p_velocity(g2p_targets(), grid.vel.data(), dt, velocity_motion, store_gradient);
 }
 
-void Simulation::Impl::g2p_velocity_and_kinematics(double t, double dt) {
-    std::optional<Inversion> inv;
+namespace {
+
+// The fused G2P's blocks go straight into the material update.
+class MaterialBlocks final : public GradientBlocks {
+  public:
+    MaterialBlocks(MaterialUpdate &m, std::vector<ParticleSet> &sets, const Increment &inc,
+                   UpdateFailures &failures)
+        : m_(m), sets_(sets), inc_(inc), failures_(failures) {}
+    std::size_t block_size() const override { return m_.block_size(); }
+    double *buffer() override { return m_.gradient_buffer(); }
+    void take(std::size_t set, std::size_t begin, std::size_t count) override {
+        m_.block(sets_[set], set, begin, count, m_.gradient_buffer(), 9, inc_, failures_);
+    }
+
+  private:
+    MaterialUpdate &m_;
+    std::vector<ParticleSet> &sets_;
+    const Increment &inc_;
+    UpdateFailures &failures_;
+};
+
+} // namespace
+
+void Simulation::Impl::g2p_velocity_and_update(double t, double dt) {
+    UpdateFailures failures;
+    materials.prepare(sets);
+    const Increment inc{t, dt, step + 1, nullptr, nullptr};
+    MaterialBlocks blocks(materials, sets, inc, failures);
     {
         auto tm = timer(Phase::g2p);
-        inv =
-            talus::g2p_velocity_and_kinematics(g2p_targets(), grid.vel.data(), dt, velocity_motion);
+        talus::g2p_velocity_and_update(g2p_targets(), grid.vel.data(), dt, velocity_motion, blocks);
     }
-    if (inv) inverted(*inv, t);
+    // The material update's share of the fused pass, as its own phase.
+    const double in_blocks = materials.collect();
+    phase_seconds[static_cast<std::size_t>(Phase::g2p)] -= in_blocks;
+    phase_seconds[static_cast<std::size_t>(Phase::material_update)] += in_blocks;
+    update_failed(failures, t);
 }
 
 void Simulation::Impl::g2p_gradient(const double *field, std::size_t offset,
@@ -68,23 +97,29 @@ void Simulation::Impl::g2p_gradient(const double *field, std::size_t offset,
     talus::g2p_gradient(g2p_targets(), field, offset, move_offset, move_dt);
 }
 
-void Simulation::Impl::kinematics(double t, double dt) {
-    std::optional<Inversion> inv;
-    {
-        auto tm = timer(Phase::kinematics);
-        inv = talus::kinematics(sets, grid.geo, dt,
-                                sc.solver.cell_averaged_dilation ? &dilation : nullptr);
-    }
-    if (inv) inverted(*inv, t);
-}
-
 void Simulation::Impl::material_update(double t, double dt) {
-    std::optional<MaterialFailure> failure;
+    const bool averaged = sc.solver.cell_averaged_dilation;
+    if (averaged) {
+        std::optional<Inversion> inv;
+        {
+            auto tm = timer(Phase::dilation);
+            inv = dilation_sums(sets, grid.geo, dt, dilation);
+        }
+        if (inv) inverted(*inv, t);
+    }
+    UpdateFailures failures;
     {
         auto tm = timer(Phase::material_update);
-        failure = materials.run(sets, t, dt, step + 1);
+        const Increment inc{t, dt, step + 1, averaged ? &dilation : nullptr, &grid.geo};
+        materials.run(sets, inc, /*stored_L=*/true, failures);
+        materials.collect();
     }
-    if (failure) material_failed(*failure, step + 1);
+    update_failed(failures, t);
+}
+
+void Simulation::Impl::update_failed(const UpdateFailures &f, double t) {
+    if (const Inversion *inv = f.inverted.first()) inverted(*inv, t);
+    if (const MaterialFailure *m = f.material.first()) material_failed(*m, step + 1);
 }
 
 void Simulation::Impl::move_particles(PositionStep how) {

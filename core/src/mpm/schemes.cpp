@@ -15,18 +15,17 @@ void Simulation::Impl::usl(double t, double dt) {
     p2g_momentum_and_forces();
     grid_update(t, dt);
     g2p_velocity(dt, /*store_gradient=*/true);
-    kinematics(t, dt);
     material_update(t, dt);
     move_particles(PositionStep::add_dx);
 }
 
-// USL with the kinematics done inside the G2P loop while L is in
-// registers: no stored gradient, no position step, one pass less.
+// USL with the kinematics and material update done block by block inside
+// the G2P loop while the block's data are in cache: no stored gradient, no
+// position step, one pass over the particles less.
 void Simulation::Impl::usl_fused(double t, double dt) {
     p2g_momentum_and_forces();
     grid_update(t, dt);
-    g2p_velocity_and_kinematics(t, dt);
-    material_update(t, dt);
+    g2p_velocity_and_update(t, dt);
     move_particles(PositionStep::already_moved);
 }
 
@@ -36,7 +35,6 @@ void Simulation::Impl::usf(double t, double dt) {
     p2g_momentum();
     grid_velocity(t);
     g2p_gradient(grid.vel.data(), kVelocity, kVelocity, dt);
-    kinematics(t, dt);
     material_update(t, dt);
     p2g_forces();
     grid_update(t, dt);
@@ -56,7 +54,6 @@ void Simulation::Impl::musl(double t, double dt) {
     remapped_velocity(t + dt);
     const bool mean = velocity_motion == Motion::mean_velocity;
     g2p_gradient(grid.acc.data(), kForce, mean ? kMomentum : kForce, dt);
-    kinematics(t, dt);
     material_update(t, dt);
     move_particles(PositionStep::add_dx);
 }
@@ -67,12 +64,10 @@ void Simulation::Impl::usavg(double t, double dt) {
     p2g_momentum();
     grid_velocity(t);
     g2p_gradient(grid.vel.data(), kVelocity, 0, 0.0);
-    kinematics(t, 0.5 * dt);
     material_update(t, 0.5 * dt);
     p2g_forces();
     grid_update(t, dt);
     g2p_velocity(dt, /*store_gradient=*/true);
-    kinematics(t + 0.5 * dt, 0.5 * dt);
     material_update(t + 0.5 * dt, 0.5 * dt);
     move_particles(PositionStep::add_dx);
 }

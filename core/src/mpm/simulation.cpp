@@ -106,7 +106,10 @@ Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options)
     // The plugins see the initial state once (zero increment, so no stress
     // work) and report their wave speeds; a material that rejects its
     // initial state stops here.
-    if (const auto failure = materials.run(sets, 0.0, 0.0, 0)) material_failed(*failure, 0);
+    UpdateFailures failures;
+    materials.run(sets, Increment{}, /*stored_L=*/false, failures);
+    materials.collect();
+    if (const MaterialFailure *f = failures.material.first()) material_failed(*f, 0);
     failed_call.reset(); // the constructor throws: nobody to replay for
     order.sort(sets);
 }
@@ -226,7 +229,7 @@ std::array<double, Simulation::kPhases> Simulation::phase_seconds() const {
 
 const char *Simulation::phase_name(int k) {
     static const char *names[kPhases] = {"time_step",       "reorder",       "p2g",
-                                         "grid_update",     "g2p",           "kinematics",
+                                         "grid_update",     "g2p",           "dilation",
                                          "material_update", "move_particles"};
     return names[k];
 }

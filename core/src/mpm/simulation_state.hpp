@@ -34,15 +34,15 @@ enum class Phase {
     p2g,
     grid_update,
     g2p,
-    kinematics,
+    dilation,
     material_update,
     move_particles
 };
 
 // A scheme's step as the run will take it, chosen once at set-up.
 enum class StepVariant {
-    usl,       // USL with cell-averaged dilation: kinematics as a pass of its own
-    usl_fused, // USL: the kinematics inside G2P, the particles moved there
+    usl,       // USL with cell-averaged dilation: the update after the dilation sums
+    usl_fused, // USL: the kinematics and material update inside G2P, the particles moved there
     usf,
     musl,
     usavg
@@ -93,10 +93,11 @@ struct Simulation::Impl {
     void grid_update(double t, double dt);
     void remapped_velocity(double t_end);
     void g2p_velocity(double dt, bool store_gradient);
-    void g2p_velocity_and_kinematics(double t, double dt);
+    void g2p_velocity_and_update(double t, double dt);
     void g2p_gradient(const double *field, std::size_t offset, std::size_t move_offset,
                       double move_dt);
-    void kinematics(double t, double dt);
+    // Kinematics and material update from the stored L (after the dilation
+    // sums, with cell-averaged dilation).
     void material_update(double t, double dt);
     void move_particles(PositionStep step);
 
@@ -106,6 +107,8 @@ struct Simulation::Impl {
     // Reports the first failure of a material update as talus::Error.
     [[noreturn]] void material_failed(const MaterialFailure &f, long step_number);
     [[noreturn]] void inverted(const Inversion &inv, double t) const;
+    // Reports the first failure of an update pass, if any.
+    void update_failed(const UpdateFailures &f, double t);
 
     P2gSources p2g_sources() const {
         return {grid.geo, sets, order, loads, sc.solver.shape, sc.solver.transfer != Transfer::flip,

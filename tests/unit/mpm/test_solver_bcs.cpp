@@ -323,8 +323,11 @@ TEST(InitialState, UniformStress) {
 // has the same volumetric strain increment, equal to the volume-weighted
 // mean of the increments the points would have had without averaging (the
 // run without the option); the deviatoric part is untouched. A block with a
-// non-uniform velocity field gives non-trivial dilation. Round-off: 1e-12
-// of the increments.
+// non-uniform velocity field gives non-trivial dilation. The increments are
+// read back from the stress: from zero stress, one linear elastic step in
+// plane strain gives sxx + syy = 2 (lambda + mu) (dexx + deyy),
+// sxx - syy = 2 mu (dexx - deyy) and sxy = mu gxy. Round-off: 1e-12 of the
+// increments (a few operations on each side).
 TEST(CellAveragedDilation, EachCellGetsItsVolumeWeightedMeanDilation) {
     const std::string yaml = std::string(kHead) +
                              "grid: {origin: [0, 0], size: [1, 1], cell: 0.1}\n"
@@ -345,6 +348,17 @@ TEST(CellAveragedDilation, EachCellGetsItsVolumeWeightedMeanDilation) {
     avg->sim->step(1.0);
     const auto &a = plain->sim->sets()[0];
     const auto &b = avg->sim->sets()[0];
+    const double E = 1.0e6, nu = 0.3; // kHead's material
+    const double lambda = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu)), mu = E / (2.0 * (1.0 + nu));
+    auto volumetric = [&](const talus::ParticleSet &s, std::size_t p) {
+        return (s.stress[6 * p] + s.stress[6 * p + 1]) / (2.0 * (lambda + mu));
+    };
+    auto deviatoric = [&](const talus::ParticleSet &s, std::size_t p) {
+        return (s.stress[6 * p] - s.stress[6 * p + 1]) / (2.0 * mu);
+    };
+    auto shear = [&](const talus::ParticleSet &s, std::size_t p) {
+        return s.stress[6 * p + 3] / mu;
+    };
     // Group by the cell that held the point at the start of the step.
     std::map<int, std::vector<std::size_t>> cells;
     for (std::size_t p = 0; p < a.n; ++p) {
@@ -356,20 +370,18 @@ TEST(CellAveragedDilation, EachCellGetsItsVolumeWeightedMeanDilation) {
     for (const auto &[key, pts] : cells) {
         double num = 0.0, den = 0.0;
         for (std::size_t p : pts) {
-            num += (a.de[6 * p] + a.de[6 * p + 1]) * a.J[p] * a.vol0[p];
+            num += volumetric(a, p) * a.J[p] * a.vol0[p];
             den += a.J[p] * a.vol0[p];
         }
         const double mean = num / den;
         for (std::size_t p : pts) {
-            const double vol_b = b.de[6 * p] + b.de[6 * p + 1];
-            worst = std::max(worst, std::abs(vol_b - mean));
-            scale = std::max(scale, std::abs(a.de[6 * p] + a.de[6 * p + 1]));
-            spread = std::max(spread, std::abs(a.de[6 * p] + a.de[6 * p + 1] - mean));
+            worst = std::max(worst, std::abs(volumetric(b, p) - mean));
+            scale = std::max(scale, std::abs(volumetric(a, p)));
+            spread = std::max(spread, std::abs(volumetric(a, p) - mean));
             // Deviatoric parts unchanged: the difference of the normal
             // components and the shear.
-            ASSERT_NEAR(b.de[6 * p] - b.de[6 * p + 1], a.de[6 * p] - a.de[6 * p + 1],
-                        1e-12 * scale + 1e-300);
-            ASSERT_NEAR(b.de[6 * p + 3], a.de[6 * p + 3], 1e-12 * scale + 1e-300);
+            ASSERT_NEAR(deviatoric(b, p), deviatoric(a, p), 1e-12 * scale + 1e-300);
+            ASSERT_NEAR(shear(b, p), shear(a, p), 1e-12 * scale + 1e-300);
         }
     }
     EXPECT_GT(spread, 1e-3 * scale) << "the test field must vary within cells";

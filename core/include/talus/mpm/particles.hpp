@@ -53,11 +53,10 @@ struct ParticleSet {
     Column<std::int32_t> group; // index into Scenario::groups
     std::array<Column<double>, 3> x, x0, v, dx;
     Column<double> mass, vol0, lp; // lp: GIMP half-width (cells)
-    Column<double> F, F_new;       // 9 per point, row-major
-    Column<double> J, rho;
+    Column<double> F;              // 9 per point, row-major
+    Column<double> J;
     Column<double> stress; // 6 per point, Voigt, Cauchy, tension +
     Column<double> state;  // state_size per point
-    Column<double> de;     // strain increment, 6 per point
     Column<double> c;      // wave speed from the plugin
     Column<double> L;      // velocity gradient, 9 per point
     Column<double> C;      // affine velocity matrix for APIC / TPIC, 9 per point
@@ -109,12 +108,9 @@ void ParticleSet::for_each_column(Fn &&f) {
     f(vol0, 1);
     f(lp, 1);
     f(F, 9);
-    f(F_new, 9);
     f(J, 1);
-    f(rho, 1);
     f(stress, 6);
     if (state_size > 0) f(state, state_size);
-    f(de, 6);
     f(c, 1);
     if (has_L) f(L, 9);
     if (has_C) f(C, 9);
