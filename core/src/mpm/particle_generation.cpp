@@ -27,6 +27,7 @@ ParticleSet new_set(const Scenario &sc, std::size_t material, ColumnsInUse colum
     s.has_divv = columns.divv;
     s.has_L = columns.L;
     s.has_dx = columns.dx;
+    s.has_lp = columns.lp;
     return s;
 }
 
@@ -102,7 +103,7 @@ void place(const Scenario &sc, std::size_t gi, const Box &bb, const std::vector<
     const double V0 = std::pow(sc.cell / gs.particles_per_cell, D);
     s.vol0[p] = V0;
     s.mass[p] = s.rho0 * V0;
-    s.lp[p] = 0.5 / gs.particles_per_cell;
+    if (s.has_lp) s.lp[p] = 0.5 / gs.particles_per_cell;
     for (std::size_t a = 0; a < 9; a += 4)
         s.F[9 * p + a] = 1.0;
     s.J[p] = 1.0;

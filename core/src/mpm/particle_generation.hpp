@@ -13,7 +13,7 @@ namespace talus {
 
 // Which optional columns the run needs (ParticleSet::has_*).
 struct ColumnsInUse {
-    bool L = true, dx = true, C = true, divv = true;
+    bool L = true, dx = true, C = true, divv = true, lp = true;
 };
 
 // Throws, at the entry's place in the file, for a group with no particle,

@@ -49,7 +49,8 @@ ColumnsInUse columns_of(const SolverSpec &sv) {
     return {.L = !fused,
             .dx = !fused,
             .C = sv.transfer != Transfer::flip,
-            .divv = sv.cell_averaged_dilation};
+            .divv = sv.cell_averaged_dilation,
+            .lp = sv.shape == ShapeKind::gimp};
 }
 
 MaterialNames names_of(const Scenario &sc, const std::vector<ParticleSet> &sets) {

@@ -120,10 +120,12 @@ struct Stencil {
             const std::size_t dd = static_cast<std::size_t>(d);
             const double xi = (s.x[dd][p] - g.origin[dd]) * g.inv_h;
             [[maybe_unused]] double node_point[W];
+            // Only GIMP has the lp column (ParticleSet::has_lp).
+            const double lp = S::half_width ? s.lp[p] : 0.0;
             if constexpr (Near)
-                S::eval_bounded(xi, s.lp[p], g.cells[dd], base[d], w[d], dw[d], node_point);
+                S::eval_bounded(xi, lp, g.cells[dd], base[d], w[d], dw[d], node_point);
             else
-                S::eval(xi, s.lp[p], base[d], w[d], dw[d]);
+                S::eval(xi, lp, base[d], w[d], dw[d]);
             for (int k = 0; k < W; ++k)
                 dw[d][k] *= g.inv_h; // d/dx = d/dxi / h, once per axis
             if constexpr (Offsets) {

@@ -52,8 +52,9 @@ struct ParticleSet {
     Column<std::int64_t> id;    // stable particle id (output, probes)
     Column<std::int32_t> group; // index into Scenario::groups
     std::array<Column<double>, 3> x, x0, v, dx;
-    Column<double> mass, vol0, lp; // lp: GIMP half-width (cells)
-    Column<double> F;              // 9 per point, row-major
+    Column<double> mass, vol0;
+    Column<double> lp; // GIMP's half-width (cells)
+    Column<double> F;  // 9 per point, row-major
     Column<double> J;
     Column<double> stress; // 6 per point, Voigt, Cauchy, tension +
     Column<double> state;  // state_size per point
@@ -66,10 +67,10 @@ struct ParticleSet {
 
     // Which optional columns this run needs (the others stay empty): the
     // third components only in 3D, L and dx unless USL does its kinematics
-    // inside G2P, C for the affine transfers, divv for cell-averaged dilation.
-    // Set before the first resize().
+    // inside G2P, C for the affine transfers, divv for cell-averaged
+    // dilation, lp for GIMP. Set before the first resize().
     int dim = 3;
-    bool has_L = true, has_dx = true, has_C = true, has_divv = true;
+    bool has_L = true, has_dx = true, has_C = true, has_divv = true, has_lp = true;
 
     ParticleSet() = default;
     ParticleSet(ParticleSet &&) noexcept = default;
@@ -106,7 +107,7 @@ void ParticleSet::for_each_column(Fn &&f) {
     }
     f(mass, 1);
     f(vol0, 1);
-    f(lp, 1);
+    if (has_lp) f(lp, 1);
     f(F, 9);
     f(J, 1);
     f(stress, 6);

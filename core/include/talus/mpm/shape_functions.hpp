@@ -116,6 +116,7 @@ inline void bounded_bspline(double xi, int n, int &base, double *w, double *dw, 
 // Linear ("tent") functions, the original MPM of Sulsky et al. (1994).
 struct LinearShape {
     static constexpr int width = 2;
+    static constexpr bool half_width = false;
     static inline void eval(double xi, double /*lp*/, int &base, double *w, double *dw) {
         const double fl = fast_floor(xi);
         base = static_cast<int>(fl);
@@ -142,6 +143,7 @@ struct LinearShape {
 // lp fixed at its initial value 1/(2 ppc) ("u" for undeformed).
 struct GimpShape {
     static constexpr int width = 3;
+    static constexpr bool half_width = true; // eval reads lp
     static inline double n(double r, double lp) {
         const double a = std::abs(r);
         if (a < lp) return 1.0 - (r * r + lp * lp) / (2.0 * lp);
@@ -180,6 +182,7 @@ struct GimpShape {
 // Quadratic B-spline (Steffen et al. 2008; seed 000 eqs. 24-25), node-centred.
 struct BSpline2Shape {
     static constexpr int width = 3;
+    static constexpr bool half_width = false;
     static inline void eval(double xi, double /*lp*/, int &base, double *w, double *dw) {
         const double fl = fast_floor(xi - 0.5);
         base = static_cast<int>(fl);
@@ -209,6 +212,7 @@ struct BSpline2Shape {
 // Cubic B-spline (Steffen et al. 2008), node-centred.
 struct BSpline3Shape {
     static constexpr int width = 4;
+    static constexpr bool half_width = false;
     static inline void eval(double xi, double /*lp*/, int &base, double *w, double *dw) {
         const double fl = fast_floor(xi);
         base = static_cast<int>(fl) - 1;
