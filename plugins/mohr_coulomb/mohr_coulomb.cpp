@@ -227,8 +227,22 @@ struct MohrCoulomb {
         const double kappa_n = in.state[0];
         const Strength st_n = strength(kappa_n);
         Vec6 trial = in.stress + De_ * in.strain_increment;
+        if (clearly_elastic(trial, st_n)) {
+            out.stress = trial;
+            out.state[2] = talus_mc::kElastic;
+            if (out.tangent) *out.tangent = De_;
+            return;
+        }
         Spectral sp(talus::sdk::stress_to_matrix(trial));
-        Return r = talus_mc::return_map(sp.values, st_n, el_);
+        // The last return's kind is tried first: a point that keeps
+        // yielding mostly stays on the same part of the surface, and any
+        // valid candidate gives the same stress (the candidates partition
+        // the trial space).
+        const double last = in.state[2];
+        const int hint = last >= 1.0 && last < static_cast<int>(talus_mc::kModeCount)
+                             ? talus_mc::candidate_of(static_cast<talus_mc::Mode>(last))
+                             : talus_mc::kNone;
+        Return r = talus_mc::return_map(sp.values, st_n, el_, hint);
         if (r.mode == talus_mc::kElastic) {
             out.stress = trial;
             // A stress left on the surface without plastic flow (a zero or
@@ -242,16 +256,17 @@ struct MohrCoulomb {
         // Its eigenvalues alone (closed form, no vectors) decide; the full
         // decomposition is needed only in that rare case. (A start stress on
         // the surface that rounding puts just outside projects onto itself.)
-        const V3 p0 = start_principal(in.stress);
+        const V3 p0 = closed_form_principal(in.stress);
         if (!talus_mc::admissible(p0, st_n, talus_mc::stress_tolerance(p0, st_n))) {
             const Spectral s0(talus::sdk::stress_to_matrix(in.stress));
             const Return r0 = talus_mc::return_map(s0.values, st_n, el_);
             trial = talus::sdk::matrix_to_stress(s0.compose(r0.stress)) + De_ * in.strain_increment;
             sp = Spectral(talus::sdk::stress_to_matrix(trial));
+            r = talus_mc::return_map(sp.values, st_n, el_, hint);
         }
         double kappa = kappa_n;
         M3 P_total;
-        r = plastic_return(sp.values, kappa_n, kappa, P_total);
+        r = plastic_return(sp.values, kappa_n, r, kappa, P_total);
         const V3 x = el_.solve(sp.values - r.stress); // principal plastic strain increment
         out.stress = talus::sdk::matrix_to_stress(sp.compose(r.stress));
         out.state[0] = kappa;
@@ -297,12 +312,40 @@ struct MohrCoulomb {
     }
 
     // Ordered principal values of a stress, by the closed-form solver.
-    static V3 start_principal(const Vec6 &s) {
+    static V3 closed_form_principal(const Vec6 &s) {
         Eigen::SelfAdjointEigenSolver<Mat3> es;
         es.computeDirect(talus::sdk::stress_to_matrix(s), Eigen::EigenvaluesOnly);
         return V3(es.eigenvalues()[2], es.eigenvalues()[1], es.eigenvalues()[0]);
     }
 
+    // Whether the trial stress is inside the surface by more than the
+    // return's tolerance, decided from the invariants without eigenvalues
+    // (most points' case; the decomposition costs more than the rest of an
+    // elastic step). With p the mean stress, J2 the second deviatoric
+    // invariant and theta the Lode angle, s1 - s3 = 2 sqrt(J2) cos(theta) and
+    // s2 - p = 2 sqrt(J2 / 3) sin(theta), so (1 + sin phi) s1 - (1 - sin phi)
+    // s3 = 2 p sin phi + 2 sqrt(J2) (cos(theta) - sin(phi) sin(theta) /
+    // sqrt(3)) <= 2 p sin phi + 2 sqrt(J2) sqrt(1 + sin^2(phi) / 3), and s1 <=
+    // p + 2 sqrt(J2 / 3). Both bounds below minus twice the return's
+    // tolerance (rounding here is ~1e-15 of the stress, the tolerance 1e-10)
+    // mean the exact test finds the point inside and off the surface: the
+    // result is the full path's, bit for bit.
+    static bool clearly_elastic(const Vec6 &t, const Strength &st) {
+        const double p = (t[0] + t[1] + t[2]) / 3.0;
+        const double J2 = ((t[0] - t[1]) * (t[0] - t[1]) + (t[1] - t[2]) * (t[1] - t[2]) +
+                           (t[2] - t[0]) * (t[2] - t[0])) /
+                              6.0 +
+                          t[3] * t[3] + t[4] * t[4] + t[5] * t[5];
+        const double q = std::sqrt(J2);
+        const double s1_max = p + 2.0 * q / std::sqrt(3.0);
+        // Twice stress_tolerance at least: max |s_i| <= |p| + 2 sqrt(J2 / 3).
+        const double tol =
+            2e-10 * std::max({std::abs(p) + 2.0 * q / std::sqrt(3.0), st.cohesion, 1e-300});
+        const double shear_max = 2.0 * p * st.sin_phi +
+                                 2.0 * q * std::sqrt(1.0 + st.sin_phi * st.sin_phi / 3.0) -
+                                 2.0 * st.cohesion * st.cos_phi;
+        return shear_max < -tol && !(st.tension_active && s1_max - st.tension >= -tol);
+    }
     // Within the validity tolerance of the shear plane or the cut-off.
     static bool on_surface(const V3 &s, const Strength &st) {
         const double tol = talus_mc::stress_tolerance(s, st);
@@ -327,9 +370,11 @@ struct MohrCoulomb {
     // superlinearly on the piecewise-smooth g; when softening is so steep
     // that g has several roots (snap-back at the point), the root found lies
     // in the bracket.
-    Return plastic_return(const V3 &trial, double kappa_n, double &kappa, M3 &P_total) const {
-        double dk = 0.0;
-        Return r = return_at(trial, kappa_n, dk);
+    // `at_start`: the return at the strength of kappa_n, already known.
+    Return plastic_return(const V3 &trial, double kappa_n, const Return &at_start, double &kappa,
+                          M3 &P_total) const {
+        Return r = at_start;
+        double dk = talus_mc::deviatoric_measure(el_.solve(trial - r.stress));
         kappa = kappa_n + dk;
         if (softening_ && kappa_n < k1_ && dk > 0.0) {
             double lo = kappa_n, g_lo = dk; // g(lo) > 0

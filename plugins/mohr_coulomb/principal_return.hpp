@@ -274,17 +274,32 @@ inline V3 apex(const Strength &st) {
     return V3::Constant(st.tension_active ? st.tension : st.cohesion * st.cos_phi / st.sin_phi);
 }
 
+// The first candidate of a kind of return (kNone for the elastic state and
+// the shear apex, which no candidate gives).
+inline int candidate_of(Mode mode) {
+    for (std::size_t i = 0; i < kCandidates.size(); ++i)
+        if (kCandidates[i].mode == mode) return static_cast<int>(i);
+    return kNone;
+}
+
 // The return of an ordered trial stress. Elastic when the trial is
-// admissible.
-inline Return return_map(const V3 &trial, const Strength &st, const Elastic &el) {
+// admissible. `hint`: a candidate to try first (any valid candidate gives
+// the same stress, so the hint saves solves without choosing the answer).
+inline Return return_map(const V3 &trial, const Strength &st, const Elastic &el, int hint = kNone) {
     Return r;
     r.stress = trial;
     const double tol = stress_tolerance(trial, st);
     if (admissible(trial, st, tol)) return r;
     const Planes pl(st);
+    if (hint >= 0 && static_cast<std::size_t>(hint) < kCandidates.size() &&
+        enabled(kCandidates[static_cast<std::size_t>(hint)], st) &&
+        try_candidate(kCandidates[static_cast<std::size_t>(hint)], trial, pl, el, st, tol, r)) {
+        r.candidate = hint;
+        return r;
+    }
     for (std::size_t i = 0; i < kCandidates.size(); ++i) {
         const Candidate &c = kCandidates[i];
-        if (!enabled(c, st)) continue;
+        if (!enabled(c, st) || static_cast<int>(i) == hint) continue;
         if (try_candidate(c, trial, pl, el, st, tol, r)) {
             r.candidate = static_cast<int>(i);
             return r;

@@ -321,6 +321,12 @@ TEST(MohrCoulomb, ReturnCandidatesPartitionTheTrialSpace) {
                 continue;
             }
             EXPECT_LT((chosen.stress - valid[0].stress).norm(), 1e-8 * t.norm());
+            // The plugin tries the last return's candidate first: whichever
+            // it is, the stress is the same (same bound).
+            for (int hint = 0; hint < static_cast<int>(talus_mc::kCandidates.size()); ++hint)
+                EXPECT_LT((talus_mc::return_map(t, st, el, hint).stress - chosen.stress).norm(),
+                          1e-8 * t.norm())
+                    << "hint " << hint;
             for (const auto &r : valid)
                 // 1e-8 of the trial: the linear solves of different
                 // candidates reach the same point with different rounding.
@@ -335,6 +341,79 @@ TEST(MohrCoulomb, ReturnCandidatesPartitionTheTrialSpace) {
     // Every kind of return occurred at least once.
     for (int mode = 1; mode < talus_mc::kModeCount; ++mode)
         EXPECT_GT(modes[mode], 0) << "mode " << mode << " never reached";
+}
+
+// The plugin decides most elastic steps from the invariants (p, J2), with a
+// bound on the yield function over the Lode angle, before any eigenvalue:
+// trial stresses just outside the surface, at every Lode angle and in a
+// rotated frame, must still be returned onto it, and those just inside
+// must stay as they are. Outside by 1e-8 to 1e-3 of the stress (the
+// return's tolerance is 1e-10), inside by 1e-3 to 1e-1. From a zero start
+// stress with the trial as the elastic image of the increment.
+TEST(MohrCoulomb, NearTheSurfaceTheElasticShortcutNeverDecidesWrongly) {
+    talus::PluginRegistry reg;
+    const double E = 1e7, nu = 0.3;
+    const auto mi = make(model(reg), {{"youngs_modulus", E},
+                                      {"poisson_ratio", nu},
+                                      {"friction_angle", 30},
+                                      {"cohesion", 1e4},
+                                      {"tension_cutoff", 5e3}});
+    const talus_mc::Strength st = strength(30, 0, 1e4, 5e3);
+    const double G = E / (2 * (1 + nu)), lambda = E * nu / ((1 + nu) * (1 - 2 * nu));
+    std::mt19937_64 rng(11);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    int outside = 0, inside = 0;
+    for (int k = 0; k < 4000; ++k) {
+        // An ordered principal trial on the shear surface (or the cut-off
+        // where it is lower) at a random Lode angle and mean stress.
+        const double p = -2e5 * u(rng);
+        const double theta = (u(rng) - 0.5) * std::numbers::pi / 3.0;
+        talus_mc::V3 dir(std::sin(theta + 2 * std::numbers::pi / 3), std::sin(theta),
+                         std::sin(theta - 2 * std::numbers::pi / 3));
+        // Scale the deviator until the trial reaches the surface.
+        auto f = [&](double r) {
+            const talus_mc::V3 s = talus_mc::V3::Constant(p) + r * dir;
+            return std::max(talus_mc::shear_yield(s, st), s[0] - st.tension);
+        };
+        double lo = 0.0, hi = 1e7;
+        if (f(lo) >= 0.0) continue; // the mean stress alone is beyond the apex
+        for (int it = 0; it < 200; ++it) {
+            const double mid = 0.5 * (lo + hi);
+            (f(mid) < 0.0 ? lo : hi) = mid;
+        }
+        const bool out = k % 2 == 0;
+        const double rel = out ? std::pow(10.0, -8 + 5 * u(rng)) : std::pow(10.0, -3 + 2 * u(rng));
+        const double r = hi * (out ? 1.0 + rel : 1.0 - rel);
+        const talus_mc::V3 s = talus_mc::V3::Constant(p) + r * dir;
+        const double scale = s.cwiseAbs().maxCoeff();
+        if (out && f(r) < 1e-9 * scale) continue; // too close to tell from the tolerance
+        // Rotated frame, then the strain increment whose elastic image it is.
+        const Eigen::Quaterniond q(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5);
+        const Eigen::Matrix3d R = q.normalized().toRotationMatrix();
+        const Eigen::Matrix3d S = R * s.asDiagonal() * R.transpose();
+        const double tr = S.trace() / (3 * lambda + 2 * G);
+        const Eigen::Matrix3d eps = (S - lambda * tr * Eigen::Matrix3d::Identity()) / (2 * G);
+        Vec6 de;
+        de << eps(0, 0), eps(1, 1), eps(2, 2), 2 * eps(0, 1), 2 * eps(1, 2), 2 * eps(0, 2);
+        const Out o = call(*mi, Vec6::Zero(), de);
+        ASSERT_TRUE(o.res.ok()) << o.res.message;
+        const talus_mc::V3 after = principal(o.stress);
+        const double f_after = std::max(talus_mc::shear_yield(after, st), after[0] - st.tension);
+        if (out) {
+            // On the surface: the return's 1e-10 tolerance and the eigen
+            // decomposition's rounding, 1e-9 of the stress.
+            EXPECT_LT(f_after, 1e-9 * scale) << "trial outside by " << rel << " left as is";
+            EXPECT_NE(static_cast<int>(o.state[2]), talus_mc::kElastic);
+            ++outside;
+        } else {
+            EXPECT_EQ(static_cast<int>(o.state[2]), talus_mc::kElastic);
+            // The trial itself (the elastic image of de, to rounding).
+            EXPECT_LT((after - s).cwiseAbs().maxCoeff(), 1e-9 * scale);
+            ++inside;
+        }
+    }
+    EXPECT_GT(outside, 1000);
+    EXPECT_GT(inside, 1000);
 }
 
 namespace {
