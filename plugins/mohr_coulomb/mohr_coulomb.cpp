@@ -256,7 +256,7 @@ struct MohrCoulomb {
         // Its eigenvalues alone (closed form, no vectors) decide; the full
         // decomposition is needed only in that rare case. (A start stress on
         // the surface that rounding puts just outside projects onto itself.)
-        const V3 p0 = closed_form_principal(in.stress);
+        const V3 p0 = start_principal(in.stress);
         if (!talus_mc::admissible(p0, st_n, talus_mc::stress_tolerance(p0, st_n))) {
             const Spectral s0(talus::sdk::stress_to_matrix(in.stress));
             const Return r0 = talus_mc::return_map(s0.values, st_n, el_);
@@ -312,7 +312,7 @@ struct MohrCoulomb {
     }
 
     // Ordered principal values of a stress, by the closed-form solver.
-    static V3 closed_form_principal(const Vec6 &s) {
+    static V3 start_principal(const Vec6 &s) {
         Eigen::SelfAdjointEigenSolver<Mat3> es;
         es.computeDirect(talus::sdk::stress_to_matrix(s), Eigen::EigenvaluesOnly);
         return V3(es.eigenvalues()[2], es.eigenvalues()[1], es.eigenvalues()[0]);

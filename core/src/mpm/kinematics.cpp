@@ -15,7 +15,7 @@ std::optional<Inversion> dilation_sums(std::vector<ParticleSet> &sets, const Gri
             const double *L = &s.L[9 * p];
             // The same arithmetic as the material update's kinematics_point,
             // which recomputes J: both see the same value.
-            s.J[p] = deformation_point<3>(&s.F[9 * p], L, dt, dim, F_end);
+            s.J[p] = deformation_point(&s.F[9 * p], L, dt, dim, F_end);
             if (!(s.J[p] > 0.0)) inverted.record({si, p});
             s.divv[p] = L[0] + L[4] + L[8];
         });

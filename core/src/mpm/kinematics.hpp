@@ -29,15 +29,9 @@ struct Inversion {
 };
 
 // F at the end of the step, F1 = (I + dt L) F0 (eq. 39), and its
-// determinant J. L is row-major 3x3 (Stride 3) or D x D (Stride D); in
-// plane strain only the in-plane block of F changes.
-template <int Stride>
-inline double deformation_point(const double *F0, const double *Lg, double dt, int dim,
-                                double *F1) {
-    double L[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
-    for (int r = 0; r < (Stride == 3 ? 3 : Stride); ++r)
-        for (int c = 0; c < (Stride == 3 ? 3 : Stride); ++c)
-            L[3 * r + c] = Lg[Stride * r + c];
+// determinant J. L is row-major 3x3; in plane strain only the in-plane
+// block of F changes.
+inline double deformation_point(const double *F0, const double *L, double dt, int dim, double *F1) {
     if (dim == 2) {
         const double a00 = 1.0 + dt * L[0], a01 = dt * L[1], a10 = dt * L[3], a11 = 1.0 + dt * L[4];
         F1[0] = a00 * F0[0] + a01 * F0[3];
@@ -70,7 +64,7 @@ struct PointIncrement {
 // half of the stress work. Returns false if the point inverted (J <= 0).
 inline bool kinematics_point(ParticleSet &s, std::size_t p, const double *L, double dt, int dim,
                              bool defer_work, const PointIncrement &out) {
-    const double J = deformation_point<3>(&s.F[9 * p], L, dt, dim, out.F_end);
+    const double J = deformation_point(&s.F[9 * p], L, dt, dim, out.F_end);
     // A failing J is kept too: the error message and the failure output
     // show the value that failed, not the last valid one.
     s.J[p] = J;
