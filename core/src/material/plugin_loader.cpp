@@ -403,30 +403,39 @@ MaterialInstance::Result MaterialInstance::update(talus_batch &b) const noexcept
         return r;
     }
     // The host never trusts outputs blindly: a NaN that entered the solver
-    // would spread silently through the grid. x * 0 is NaN exactly for NaN
-    // and infinities, so one branch-free sum screens the whole batch; the
-    // point is looked for only when it trips.
+    // would spread silently through the grid. A value is NaN or infinite
+    // exactly when its exponent bits are all ones; the test is an integer
+    // one with an OR reduction, which the compiler vectorises (a sum of
+    // x * 0, the other branch-free screen, is one long chain of dependent
+    // floating-point adds). The point is looked for only when it trips.
     const std::size_t n = b.n_points, ns = b.state_size;
     const bool want_c = (b.flags & TALUS_BATCH_WANT_WAVE_SPEED) != 0;
     const bool want_t = (b.flags & TALUS_BATCH_WANT_TANGENT) != 0;
-    auto probe = [](const double *p, std::size_t count) {
-        double acc = 0.0;
-        for (std::size_t k = 0; k < count; ++k)
-            acc += p[k] * 0.0;
-        return acc;
+    auto nonfinite = [](const double *p, std::size_t count) {
+        // The exponent lies in the upper 32 bits: a 32-bit test is one the
+        // x86-64 baseline (SSE2) has in vector form; a 64-bit one is not.
+        constexpr std::uint32_t exponent = 0x7ff00000u;
+        std::uint32_t any = 0;
+        for (std::size_t k = 0; k < count; ++k) {
+            std::uint64_t bits;
+            std::memcpy(&bits, p + k, sizeof bits);
+            const auto high = static_cast<std::uint32_t>(bits >> 32);
+            any |= static_cast<std::uint32_t>((high & exponent) == exponent);
+        }
+        return any != 0;
     };
-    double screen = probe(b.stress_end, 6 * n) + (ns ? probe(b.state_end, ns * n) : 0.0) +
-                    (want_t ? probe(b.tangent, 36 * n) : 0.0);
+    const bool screen = nonfinite(b.stress_end, 6 * n) || (ns && nonfinite(b.state_end, ns * n)) ||
+                        (want_t && nonfinite(b.tangent, 36 * n));
     bool speeds_ok = true;
     if (want_c)
         for (std::size_t i = 0; i < n; ++i)
             speeds_ok &= b.wave_speed[i] > 0.0 && b.wave_speed[i] < INFINITY;
-    if (screen == 0.0 && speeds_ok) return r;
+    if (!screen && speeds_ok) return r;
     for (std::size_t i = 0; i < n; ++i) {
         const bool bad_c = want_c && !(b.wave_speed[i] > 0.0 && b.wave_speed[i] < INFINITY);
-        const bool bad = probe(b.stress_end + 6 * i, 6) != 0.0 ||
-                         (ns && probe(b.state_end + ns * i, ns) != 0.0) ||
-                         (want_t && probe(b.tangent + 36 * i, 36) != 0.0) || bad_c;
+        const bool bad = nonfinite(b.stress_end + 6 * i, 6) ||
+                         (ns && nonfinite(b.state_end + ns * i, ns)) ||
+                         (want_t && nonfinite(b.tangent + 36 * i, 36)) || bad_c;
         if (!bad) continue;
         r.status = TALUS_STATUS_FAILED;
         r.host_detected = true;

@@ -13,7 +13,7 @@ std::optional<Inversion> dilation_sums(std::vector<ParticleSet> &sets, const Gri
         par::for_each(s.n, [&](std::size_t p) {
             double F_end[9];
             const double *L = &s.L[9 * p];
-            // The same arithmetic as the material update's kinematics_point,
+            // The same arithmetic as the material update's kinematics_block,
             // which recomputes J: both see the same value.
             s.J[p] = deformation_point(&s.F[9 * p], L, dt, dim, F_end);
             if (!(s.J[p] > 0.0)) inverted.record({si, p});

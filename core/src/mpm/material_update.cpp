@@ -76,24 +76,19 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
                            UpdateFailures &failures) {
     const auto t0 = std::chrono::steady_clock::now();
     Scratch &scr = scratch_[static_cast<std::size_t>(par::thread_index())];
-    const bool dilation = inc.dilation != nullptr;
-    for (std::size_t k = 0; k < count; ++k) {
-        const std::size_t p = begin + k;
-        double *de = &scr.de[6 * k];
-        if (!kinematics_point(s, p, L + L_stride * k, inc.dt, s.dim, dilation,
-                              {&scr.F_end[9 * k], de, &scr.rho[k]})) {
-            failures.inverted.record({set, p});
-            return;
-        }
-        if (dilation) {
-            // Eq. 52, then the first half of the stress work with the
-            // averaged increment.
-            const double corr = dilation_correction(*inc.dilation, *inc.geo, s, p, inc.dt);
-            for (int d = 0; d < s.dim; ++d)
-                de[d] += corr;
-            s.work[p] += 0.5 * s.J[p] * s.vol0[p] * stress_work(&s.stress[6 * p], de);
-        }
+    const std::size_t done = kinematics_block(s, begin, count, L, L_stride, inc.dt,
+                                              {scr.F_end.data(), scr.de.data(), scr.rho.data()});
+    if (done < count) {
+        failures.inverted.record({set, begin + done});
+        return;
     }
+    if (inc.dilation)
+        for (std::size_t k = 0; k < count; ++k) {
+            // Eq. 52: each point's dilation becomes its cell's mean.
+            const double corr = dilation_correction(*inc.dilation, *inc.geo, s, begin + k, inc.dt);
+            for (int d = 0; d < s.dim; ++d)
+                scr.de[6 * k + static_cast<std::size_t>(d)] += corr;
+        }
     // Stress and state go to scratch and are committed after the call: the
     // particle's stay the inputs of any retry.
     const std::size_t ns = s.state_size;
@@ -106,13 +101,17 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
         failures.material.record(failure);
         return;
     }
+    // The stress work over the step (trapezoidal: the rotated start stress
+    // and the end stress on the increment), before the start is overwritten.
+    for (std::size_t k = 0; k < count; ++k) {
+        const std::size_t p = begin + k;
+        const double *de = &scr.de[6 * k];
+        s.work[p] += 0.5 * s.J[p] * s.vol0[p] * stress_work(&s.stress[6 * p], de);
+        s.work[p] += 0.5 * s.J[p] * s.vol0[p] * stress_work(&scr.stress[6 * k], de);
+    }
     std::copy_n(scr.stress.data(), 6 * count, &s.stress[6 * begin]);
     if (ns) std::copy_n(scr.state.data(), ns * count, &s.state[ns * begin]);
     std::copy_n(scr.F_end.data(), 9 * count, &s.F[9 * begin]);
-    for (std::size_t k = 0; k < count; ++k) {
-        const std::size_t p = begin + k;
-        s.work[p] += 0.5 * s.J[p] * s.vol0[p] * stress_work(&s.stress[6 * p], &scr.de[6 * k]);
-    }
     scr.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 

@@ -8,10 +8,13 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
 #include <fstream>
+#include <limits>
 #include <span>
 #include <string>
+#include <vector>
 
 namespace fs = std::filesystem;
 using talus::test::contains;
@@ -285,6 +288,55 @@ TEST(Loader, NaNFromAPluginNeverReachesTheHost) {
 TEST(Loader, NaNFromAnSdkPluginIsCaughtByTheHostsScreen) {
     const double p[] = {1e6};
     expect_host_catches_nan("nan_sdk", p);
+}
+
+// The SDK's screen of a batch's inputs (one pass over the whole batch,
+// then a search for the point): every kind of bad value, at every point of
+// a batch, fails the call naming that point, and no earlier point hides it.
+TEST(Loader, TheSdkNamesThePointWithANonFiniteOrInvalidInput) {
+    talus::PluginRegistry reg;
+    const talus::Model &m = reg.load("linear_elastic").models()[0];
+    const double p[] = {1e7, 0.3};
+    const auto inst = m.create(p);
+    constexpr std::size_t n = 5;
+    const double inf = std::numeric_limits<double>::infinity();
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    struct Bad {
+        const char *what;
+        double value;
+        int array; // 0 strain increment, 1 stress, 2 density
+        std::size_t component;
+    };
+    const Bad bads[] = {{"NaN strain", nan, 0, 3},       {"inf strain", -inf, 0, 5},
+                        {"NaN stress", nan, 1, 0},       {"inf stress", inf, 1, 4},
+                        {"NaN density", nan, 2, 0},      {"zero density", 0.0, 2, 0},
+                        {"negative density", -1.0, 2, 0}};
+    for (const Bad &bad : bads)
+        for (std::size_t at = 0; at < n; ++at) {
+            std::vector<double> de(6 * n, 1e-6), s0(6 * n, -1e3), F(9 * n, 0.0), rho(n, 2000.0);
+            for (std::size_t k = 0; k < n; ++k)
+                F[9 * k] = F[9 * k + 4] = F[9 * k + 8] = 1.0;
+            std::vector<double> s1(6 * n), c(n);
+            if (bad.array == 0) de[6 * at + bad.component] = bad.value;
+            if (bad.array == 1) s0[6 * at + bad.component] = bad.value;
+            if (bad.array == 2) rho[at] = bad.value;
+            talus_batch b{};
+            b.flags = TALUS_BATCH_WANT_WAVE_SPEED;
+            b.n_points = n;
+            b.dt = 1e-3;
+            b.strain_increment = de.data();
+            b.F_start = F.data();
+            b.F_end = F.data();
+            b.density = rho.data();
+            b.stress_start = s0.data();
+            b.stress_end = s1.data();
+            b.wave_speed = c.data();
+            const auto r = inst->update(b);
+            EXPECT_EQ(r.status, TALUS_STATUS_FAILED) << bad.what << " at " << at;
+            EXPECT_FALSE(r.host_detected) << bad.what << " at " << at;
+            EXPECT_EQ(r.point, static_cast<std::int64_t>(at)) << bad.what;
+            EXPECT_TRUE(contains(r.message, "non-finite input")) << r.message;
+        }
 }
 
 TEST(Loader, CreateReportsThePluginsRejection) {
