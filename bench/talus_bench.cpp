@@ -17,6 +17,14 @@
 #include <string>
 #include <vector>
 
+// Which material update was measured: the plugins through the C ABI, or
+// (the benchmark-only build) linear_elastic inlined into the host.
+#ifdef TALUS_BENCH_INLINE_HOOKE
+constexpr const char *kMaterialPath = "inline_hooke";
+#else
+constexpr const char *kMaterialPath = "plugin";
+#endif
+
 namespace {
 
 struct Case {
@@ -205,13 +213,13 @@ int main(int argc, char **argv) {
                                      100.0 * share);
                 }
                 std::printf("{\"case\": \"%s\", \"dim\": %d, \"particles\": %zu, \"steps\": %d, "
-                            "\"threads\": %d, \"kernels\": \"%s\", "
+                            "\"threads\": %d, \"kernels\": \"%s\", \"material_path\": \"%s\", "
                             "\"seconds\": %.4f, \"particle_steps_per_second\": %.4g, "
                             "\"particle_bytes\": %.0f, \"max_rss_bytes_per_particle\": %.0f, "
                             "\"barriers_per_step\": %.1f, \"phase_shares\": {%s}}\n",
                             c.name.c_str(), c.dim, sim.particle_count(), steps, used,
-                            sim.kernel_isa(), best, n * steps / best, particle_bytes / n, rss / n,
-                            barriers, shares.c_str());
+                            sim.kernel_isa(), kMaterialPath, best, n * steps / best,
+                            particle_bytes / n, rss / n, barriers, shares.c_str());
                 std::fflush(stdout);
             }
     } catch (const std::exception &e) {

@@ -359,6 +359,7 @@ std::unique_ptr<MaterialInstance> Model::create(std::span<const double> values) 
     out->model_ = this;
     out->library_ = library_->shared_from_this();
     out->instance_ = inst;
+    out->parameters_.assign(values.begin(), values.end());
     return out;
 }
 

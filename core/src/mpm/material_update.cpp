@@ -3,6 +3,10 @@
 #include <talus/material/crash_report.hpp>
 #include <talus/material/cut_step.hpp>
 
+#ifdef TALUS_BENCH_INLINE_HOOKE
+#include "bench_inline_hooke.hpp"
+#endif
+
 #include <algorithm>
 #include <chrono>
 
@@ -97,7 +101,14 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
                     scr.de.data(),        scr.rho.data()};
     const Outputs out{scr.stress.data(), ns ? scr.state.data() : nullptr};
     MaterialFailure failure;
-    if (!advance(s, set, begin, count, inc.t, inc.dt, inc.step, 1.0, 0, in, out, scr, failure)) {
+#ifdef TALUS_BENCH_INLINE_HOOKE
+    const bool inlined = bench_only::inline_hooke(*s.instance, count, in.stress, in.de, in.rho,
+                                                  out.stress, &s.c[begin]);
+#else
+    constexpr bool inlined = false;
+#endif
+    if (!inlined &&
+        !advance(s, set, begin, count, inc.t, inc.dt, inc.step, 1.0, 0, in, out, scr, failure)) {
         failures.material.record(failure);
         return;
     }

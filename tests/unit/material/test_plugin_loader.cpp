@@ -298,6 +298,9 @@ TEST(Loader, TheSdkNamesThePointWithANonFiniteOrInvalidInput) {
     const talus::Model &m = reg.load("linear_elastic").models()[0];
     const double p[] = {1e7, 0.3};
     const auto inst = m.create(p);
+    // The instance keeps what it was made from (provenance, the benchmark's
+    // inlined Hooke update).
+    EXPECT_EQ(inst->parameters(), std::vector<double>(std::begin(p), std::end(p)));
     constexpr std::size_t n = 5;
     const double inf = std::numeric_limits<double>::infinity();
     const double nan = std::numeric_limits<double>::quiet_NaN();

@@ -129,6 +129,9 @@ class MaterialInstance {
     MaterialInstance &operator=(const MaterialInstance &) = delete;
 
     const Model &model() const { return *model_; }
+    // The parameter values it was created with, in the order of
+    // model().params().
+    const std::vector<double> &parameters() const { return parameters_; }
 
     struct Result {
         std::int32_t status = TALUS_STATUS_OK;
@@ -153,6 +156,7 @@ class MaterialInstance {
     const Model *model_ = nullptr;
     std::shared_ptr<const PluginLibrary> library_;
     talus_instance *instance_ = nullptr;
+    std::vector<double> parameters_;
 };
 
 class PluginRegistry {
