@@ -8,12 +8,16 @@
 
 #include <fmt/format.h>
 
+#include <omp.h>
 #include <sys/resource.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cstddef>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -74,6 +78,63 @@ std::string block_yaml(int dim, int nx, int ny, int nz, int ppc, double h,
         "time: {{end: 1.0}}\n",
         dim, origin, size, h, material, ppc, bmin, bmax,
         material == kElastic ? "" : ", initial_stress: {geostatic: {k0: 0.5}}", floor, g, solver);
+}
+
+// The machine's memory bandwidth, the roof of docs/performance.md: a
+// read-only sum and the STREAM triad a = b + s c over arrays far larger
+// than the caches, with the same threads as the cases (static shares, each
+// thread first touching its own part). Bytes as STREAM counts them: 8 per
+// value read or written (the write's read for ownership not counted).
+void memory_bandwidth(int threads, int repeat) {
+    const std::size_t n = std::size_t{1} << 25; // 32 Mi doubles: 256 MiB per array
+    std::unique_ptr<double[]> a(new double[n]), b(new double[n]), c(new double[n]);
+    const int used = threads > 0 ? threads : omp_get_max_threads();
+    const auto len = static_cast<std::ptrdiff_t>(n);
+#pragma omp parallel for schedule(static) num_threads(used)
+    for (std::ptrdiff_t i = 0; i < len; ++i) {
+        a[static_cast<std::size_t>(i)] = 1.0;
+        b[static_cast<std::size_t>(i)] = 2.0;
+        c[static_cast<std::size_t>(i)] = 0.5;
+    }
+    auto best_of = [&](auto &&kernel) {
+        double best = 1e300;
+        for (int r = 0; r < std::max(repeat, 3); ++r) {
+            const auto t0 = std::chrono::steady_clock::now();
+            kernel();
+            best = std::min(
+                best, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+        }
+        return best;
+    };
+    // The read: eight running sums per thread, so that the adds' latency
+    // (a single sum is one dependent chain) does not bound it.
+    double sum = 0.0;
+    const double read = best_of([&] {
+        double s = 0.0;
+#pragma omp parallel for schedule(static) num_threads(used) reduction(+ : s)
+        for (std::ptrdiff_t i = 0; i < len / 8; ++i) {
+            const double *p = &a[8 * static_cast<std::size_t>(i)];
+            double part[8];
+            for (int k = 0; k < 8; ++k)
+                part[k] = p[k];
+            s += ((part[0] + part[1]) + (part[2] + part[3])) +
+                 ((part[4] + part[5]) + (part[6] + part[7]));
+        }
+        sum = s;
+    });
+    const double triad = best_of([&] {
+#pragma omp parallel for schedule(static) num_threads(used)
+        for (std::ptrdiff_t i = 0; i < len; ++i) {
+            const auto k = static_cast<std::size_t>(i);
+            a[k] = b[k] + 0.5 * c[k];
+        }
+    });
+    const double bytes = 8.0 * static_cast<double>(n);
+    // `check` keeps the sums alive (and shows the arrays held what was written).
+    std::printf("{\"case\": \"memory_bandwidth\", \"threads\": %d, \"read_gb_per_s\": %.1f, "
+                "\"triad_gb_per_s\": %.1f, \"check\": %.0f}\n",
+                used, bytes / read / 1e9, 3.0 * bytes / triad / 1e9, sum / static_cast<double>(n));
+    std::fflush(stdout);
 }
 
 } // namespace
@@ -158,6 +219,9 @@ int main(int argc, char **argv) {
         {"2d_block_4m", 2, block_yaml(2, 1000, 1000, 0, 2, 0.002)},
     };
     try {
+        if (only.empty() || only == "memory_bandwidth")
+            for (const int threads : thread_counts)
+                memory_bandwidth(threads, repeat);
         for (const Case &c : cases)
             for (const int threads : thread_counts) {
                 if (!only.empty() && c.name != only) continue;
