@@ -409,6 +409,9 @@ MaterialInstance::Result MaterialInstance::update(talus_batch &b) const noexcept
     // one with an OR reduction, which the compiler vectorises (a sum of
     // x * 0, the other branch-free screen, is one long chain of dependent
     // floating-point adds). The point is looked for only when it trips.
+    // The SDK's batch loop has the same test for a plugin's inputs; the
+    // core does not use the SDK (the C header is all it shares with
+    // plugins), so each side keeps its own few lines.
     const std::size_t n = b.n_points, ns = b.state_size;
     const bool want_c = (b.flags & TALUS_BATCH_WANT_WAVE_SPEED) != 0;
     const bool want_t = (b.flags & TALUS_BATCH_WANT_TANGENT) != 0;

@@ -19,7 +19,10 @@ namespace talus::bench_only {
 // For an instance of linear_elastic: the stress (and wave speed) of
 // `count` points, with the plugin's own arithmetic
 // (plugins/linear_elastic), so the results are the same to the bit.
-// Returns false, doing nothing, for any other model.
+// Returns false, doing nothing, for any other model. The model check and
+// the moduli are per call, i.e. per block of 128 points: tens of
+// nanoseconds against the block's ~10 microseconds, so they do not bias
+// the A/B.
 inline bool inline_hooke(const MaterialInstance &m, std::size_t count, const double *stress_in,
                          const double *de, const double *rho, double *stress_out, double *c) {
     if (m.model().id() != "linear_elastic") return false;

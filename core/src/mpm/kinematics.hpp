@@ -72,7 +72,8 @@ struct BlockIncrement {
 // rotated start stress. Returns the block index of the first point that
 // inverted (J <= 0), or count. The stress work is the caller's: it needs
 // the end stress too. One loop per dimension and rotation, with no
-// per-point call or test of the set's options.
+// per-point call; the one option left inside (div v kept or not) is a
+// loop-invariant test.
 template <int D, bool Rotate>
 inline std::size_t kinematics_block_impl(ParticleSet &s, std::size_t begin, std::size_t count,
                                          const double *L, std::size_t L_stride, double dt,
