@@ -1091,8 +1091,12 @@ std::string replay_case_yaml(const FailedCall &fc, const Scenario &sc) {
     y += fmt::format("material:\n  model: {}\n  density: {:.17g}\n", model.id(), m.spec.density);
     for (std::size_t i = 0; i < model.params().size(); ++i) {
         const ParamInfo &p = model.params()[i];
-        const double v = m.spec.param_values[i];
-        if (p.type == TALUS_PARAM_BOOLEAN)
+        const double v = m.spec.params[i].scalar;
+        if (p.type == TALUS_PARAM_REAL_ARRAY)
+            y += fmt::format("  {}: {}\n", p.key, list(m.spec.params[i].reals));
+        else if (p.type == TALUS_PARAM_STRING)
+            y += fmt::format("  {}: '{}'\n", p.key, single_quoted(m.spec.params[i].text));
+        else if (p.type == TALUS_PARAM_BOOLEAN)
             y += fmt::format("  {}: {}\n", p.key, v != 0.0 ? "true" : "false");
         else if (p.type == TALUS_PARAM_INTEGER)
             y += fmt::format("  {}: {}\n", p.key, static_cast<long long>(v));

@@ -233,7 +233,7 @@ class RunOutput {
         fields_ = sc.output.state_fields;
         if (sc.output.all_flagged_state)
             for (const auto &m : sc.materials)
-                for (const auto &v : m.spec.model->state())
+                for (const auto &v : m.spec.state.vars)
                     if (v.output() &&
                         std::find(fields_.begin(), fields_.end(), v.name) == fields_.end())
                         fields_.push_back(v.name);
@@ -404,7 +404,7 @@ std::vector<long> final_field_offsets(const Scenario &sc, const std::string &fie
     std::vector<std::string> known(std::begin(kFinalFieldBuiltins), std::end(kFinalFieldBuiltins));
     bool found = false;
     for (std::size_t m = 0; m < sc.materials.size(); ++m)
-        for (const auto &v : sc.materials[m].spec.model->state()) {
+        for (const auto &v : sc.materials[m].spec.state.vars) {
             if (std::find(known.begin(), known.end(), v.name) == known.end())
                 known.push_back(v.name);
             if (v.name != field) continue;

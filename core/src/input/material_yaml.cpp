@@ -24,7 +24,10 @@ MaterialSpec read_material(const yaml::Node &node, PluginRegistry &registry) {
     std::vector<std::string_view> allowed = {"model", "density"};
     for (const ParamInfo &p : model.params())
         allowed.push_back(p.key);
+    // An instance-state model's variables are known only once its instance
+    // exists: `initial_state` is then checked against them below.
     const bool any_user_state =
+        model.instance_state() ||
         std::any_of(model.state().begin(), model.state().end(),
                     [](const StateInfo &s) { return s.user_initialisable(); });
     if (any_user_state) allowed.push_back("initial_state");
@@ -39,30 +42,54 @@ MaterialSpec read_material(const yaml::Node &node, PluginRegistry &registry) {
         const yaml::Node v = node.get(p.key);
         if (!v.raw().IsDefined()) {
             if (p.required())
-                node.fail(fmt::format("missing required parameter '{}' of model '{}': {} (unit {}, "
-                                      "expected {}, e.g. {:g})",
-                                      p.key, id, p.doc, p.unit, p.bounds_text(), p.typical_value));
-            spec.param_values.push_back(p.default_value);
+                node.fail(fmt::format(
+                    "missing required parameter '{}' of model '{}': {} (unit {}, "
+                    "{}, e.g. {})",
+                    p.key, id, p.doc, p.unit,
+                    p.type == TALUS_PARAM_STRING ? "a string"
+                    : p.type == TALUS_PARAM_REAL_ARRAY
+                        ? fmt::format("a list of {}, each {}", p.count_text(), p.bounds_text())
+                        : "expected " + p.bounds_text(),
+                    p.value_text(p.typical_param())));
+            spec.params.push_back(p.default_param());
             continue;
         }
-        double value = 0.0;
+        ParamValue value;
         switch (p.type) {
-        case TALUS_PARAM_INTEGER: value = static_cast<double>(v.as_integer()); break;
-        case TALUS_PARAM_BOOLEAN: value = v.as_bool() ? 1.0 : 0.0; break;
-        default: value = v.as_double(); break;
+        case TALUS_PARAM_INTEGER: value.scalar = static_cast<double>(v.as_integer()); break;
+        case TALUS_PARAM_BOOLEAN: value.scalar = v.as_bool() ? 1.0 : 0.0; break;
+        case TALUS_PARAM_REAL_ARRAY:
+            if (!v.is_sequence())
+                v.fail(fmt::format("expected a list of {} (e.g. [{:g}, {:g}]) for '{}'",
+                                   p.count_text(), p.typical_value, p.typical_value, p.key));
+            value.reals = v.as_doubles();
+            break;
+        case TALUS_PARAM_STRING: value.text = v.as_string(); break;
+        default: value.scalar = v.as_double(); break;
         }
         const std::string why = check_parameter(p, value);
-        if (!why.empty()) v.fail(fmt::format("value {:g} is out of range: {}", value, why));
-        spec.param_values.push_back(value);
+        if (!why.empty())
+            v.fail(fmt::format("value {} is out of range: {}", p.value_text(value), why));
+        spec.params.push_back(std::move(value));
     }
+    spec.context.material_name = spec.name;
+    spec.context.base_dir = std::filesystem::path(node.file()).parent_path().string();
 
-    spec.initial_state = model.initial_state();
+    // An instance-state model's layout depends on its parameters: ask an
+    // instance (the plugin's verdict on the parameters, at their place).
+    if (model.instance_state())
+        spec.state = instantiate(spec, node)->state();
+    else
+        spec.state = model.state_layout();
+    spec.initial_state = spec.state.initial();
     if (const yaml::Node init = node.get("initial_state"); init.defined()) {
         std::vector<std::string_view> settable;
-        for (const StateInfo &s : model.state())
+        for (const StateInfo &s : spec.state.vars)
             if (s.user_initialisable()) settable.push_back(s.name);
+        if (settable.empty())
+            init.fail(fmt::format("model '{}' has no state variable a user may initialise", id));
         init.allow_keys(settable);
-        for (const StateInfo &s : model.state()) {
+        for (const StateInfo &s : spec.state.vars) {
             const yaml::Node v = init.get(s.name);
             if (!v.raw().IsDefined()) continue;
             std::vector<double> values;
@@ -97,7 +124,7 @@ void load_plugin_list(const yaml::Node &list, PluginRegistry &registry) {
 
 std::unique_ptr<MaterialInstance> instantiate(const MaterialSpec &spec, const yaml::Node &node) {
     try {
-        return spec.model->create(spec.param_values);
+        return spec.model->create(spec.params, spec.context);
     } catch (const Error &e) {
         node.fail(e.what());
     }

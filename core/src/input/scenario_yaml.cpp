@@ -540,7 +540,7 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
                 const std::string name = e.as_string();
                 std::vector<std::string> known;
                 for (const auto &m : s.materials)
-                    for (const auto &v : m.spec.model->state())
+                    for (const auto &v : m.spec.state.vars)
                         known.push_back(v.name);
                 if (std::find(known.begin(), known.end(), name) == known.end()) {
                     const std::string guess =

@@ -95,7 +95,7 @@ void write_vtu(const fs::path &file, const Simulation &sim,
     for (const std::string &name : state_fields) {
         std::uint32_t size = 0;
         for (const auto &m : sc.materials)
-            for (const auto &v : m.spec.model->state())
+            for (const auto &v : m.spec.state.vars)
                 if (v.name == name) size = std::max(size, v.size);
         sf.push_back(StateField{name, size, point_data.size()});
         add(name, "Float64", static_cast<int>(size));
@@ -106,7 +106,7 @@ void write_vtu(const fs::path &file, const Simulation &sim,
         // vector (nullptr: the material has no such variable).
         std::vector<const StateInfo *> info(sf.size(), nullptr);
         for (std::size_t f = 0; f < sf.size(); ++f)
-            for (const auto &v : sc.materials[s.material].spec.model->state())
+            for (const auto &v : sc.materials[s.material].spec.state.vars)
                 if (v.name == sf[f].name) info[f] = &v;
         for (std::size_t p = 0; p < s.n; ++p) {
             id.put<std::int64_t>(s.id[p]);

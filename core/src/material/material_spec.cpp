@@ -3,7 +3,7 @@
 namespace talus {
 
 std::unique_ptr<MaterialInstance> instantiate(const MaterialSpec &spec) {
-    return spec.model->create(spec.param_values);
+    return spec.model->create(spec.params, spec.context);
 }
 
 } // namespace talus

@@ -4,8 +4,10 @@
 #include <talus/text.hpp>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <dlfcn.h>
+#include <openssl/evp.h>
 
 #include <algorithm>
 #include <cmath>
@@ -49,11 +51,46 @@ std::string ParamInfo::bounds_text() const {
     return "any finite value";
 }
 
+std::string ParamInfo::count_text() const {
+    auto values = [](std::uint32_t n) { return fmt::format("{} value{}", n, n == 1 ? "" : "s"); };
+    if (max_count == 0)
+        return min_count == 0 ? "any number of values" : "at least " + values(min_count);
+    if (min_count == max_count) return "exactly " + values(min_count);
+    return fmt::format("{} to {} values", min_count, max_count);
+}
+
 const char *ParamInfo::type_name() const {
     switch (type) {
     case TALUS_PARAM_INTEGER: return "integer";
     case TALUS_PARAM_BOOLEAN: return "boolean";
+    case TALUS_PARAM_REAL_ARRAY: return "list of reals";
+    case TALUS_PARAM_STRING: return "string";
     default: return "real";
+    }
+}
+
+ParamValue ParamInfo::default_param() const {
+    ParamValue v;
+    v.scalar = default_value;
+    v.text = default_string;
+    return v; // an array's default is the empty list
+}
+
+ParamValue ParamInfo::typical_param() const {
+    ParamValue v;
+    v.scalar = typical_value;
+    if (type == TALUS_PARAM_REAL_ARRAY)
+        v.reals.assign(std::max<std::uint32_t>(min_count, 1), typical_value);
+    v.text = has_typical_string ? typical_string : default_string;
+    return v;
+}
+
+std::string ParamInfo::value_text(const ParamValue &v) const {
+    switch (type) {
+    case TALUS_PARAM_BOOLEAN: return v.scalar != 0.0 ? "true" : "false";
+    case TALUS_PARAM_REAL_ARRAY: return fmt::format("[{:g}]", fmt::join(v.reals, ", "));
+    case TALUS_PARAM_STRING: return fmt::format("\"{}\"", v.text);
+    default: return fmt::format("{:g}", v.scalar);
     }
 }
 
@@ -63,6 +100,31 @@ std::string check_parameter(const ParamInfo &p, double v) {
     if (p.type == TALUS_PARAM_BOOLEAN && v != 0.0 && v != 1.0) return "expected true or false";
     if (!p.in_bounds(v)) return fmt::format("expected {} (unit {})", p.bounds_text(), p.unit);
     return {};
+}
+
+std::string check_parameter(const ParamInfo &p, const ParamValue &v) {
+    if (p.scalar()) return check_parameter(p, v.scalar);
+    if (p.type == TALUS_PARAM_STRING) {
+        if (p.required() && v.text.empty()) return "expected a non-empty string";
+        return {};
+    }
+    const auto n = v.reals.size();
+    if (n < p.min_count || (p.max_count > 0 && n > p.max_count))
+        return fmt::format("expected {}, got {}", p.count_text(), n);
+    for (std::size_t i = 0; i < n; ++i) {
+        const std::string why = check_parameter(p, v.reals[i]);
+        if (!why.empty()) return fmt::format("value #{} ({:g}): {}", i + 1, v.reals[i], why);
+    }
+    return {};
+}
+
+// ---------------------------------------------------------- StateLayout --
+
+std::vector<double> StateLayout::initial() const {
+    std::vector<double> s(size);
+    for (const StateInfo &v : vars)
+        std::fill_n(s.begin() + v.offset, v.size, v.initial_value);
+    return s;
 }
 
 // ----------------------------------------------------- descriptor checks --
@@ -88,15 +150,17 @@ struct DescriptorChecker {
     void need_string(const char *s, const std::string &where, const char *field) const {
         if (!s) bad(where, fmt::format("field '{}' is null", field));
     }
+    // `need`: the structure's size in ABI 1.0 (the offset of its first 1.1
+    // field); the 1.1 fields are read only when struct_size holds them.
     void need_size(std::uint32_t have, std::size_t need, const std::string &where) const {
         if (have < need)
             bad(where, fmt::format("struct_size {} is smaller than the {} bytes of ABI {}.0", have,
                                    need, TALUS_ABI_VERSION_MAJOR));
     }
 
-    ParamInfo param(const talus_param_desc *d, const std::string &where) const {
+    ParamInfo param(const talus_param_desc *d, const std::string &where, bool typed_create) const {
         if (!d) bad(where, "null pointer in the params array");
-        need_size(d->struct_size, sizeof(talus_param_desc), where);
+        need_size(d->struct_size, offsetof(talus_param_desc, min_count), where);
         if (!is_snake_identifier(d->key))
             bad(where, fmt::format("field 'key' must be lower_snake_case, got '{}'",
                                    d->key ? d->key : "(null)"));
@@ -105,8 +169,15 @@ struct DescriptorChecker {
                 bad(where, fmt::format("field 'key': '{}' is reserved for the host", d->key));
         need_string(d->unit, where, "unit");
         need_string(d->doc, where, "doc");
-        if (d->type > TALUS_PARAM_BOOLEAN)
+        if (d->type > TALUS_PARAM_STRING)
             bad(where, fmt::format("field 'type': unknown type {}", d->type));
+        const bool typed = d->type > TALUS_PARAM_BOOLEAN;
+        if (typed && !TALUS_HAS_FIELD(talus_param_desc, d, typical_string))
+            bad(where, fmt::format("type {} is ABI 1.1 but the descriptor is a 1.0 one "
+                                   "(struct_size {})",
+                                   d->type, d->struct_size));
+        if (typed && !typed_create)
+            bad(where, "a list or string parameter needs the model's create_ex (ABI 1.1)");
         constexpr std::uint32_t known =
             TALUS_PARAM_REQUIRED | TALUS_PARAM_MIN_EXCLUSIVE | TALUS_PARAM_MAX_EXCLUSIVE;
         if (d->flags & ~known)
@@ -115,9 +186,35 @@ struct DescriptorChecker {
             bad(where,
                 fmt::format("fields 'min_value' ({}) and 'max_value' ({}) are not an interval",
                             d->min_value, d->max_value));
-        ParamInfo p{d->key,           d->unit,      d->doc,       d->type,         d->flags,
-                    d->default_value, d->min_value, d->max_value, d->typical_value};
-        if (!p.required()) {
+        ParamInfo p;
+        p.key = d->key;
+        p.unit = d->unit;
+        p.doc = d->doc;
+        p.type = d->type;
+        p.flags = d->flags;
+        p.default_value = d->default_value;
+        p.min_value = d->min_value;
+        p.max_value = d->max_value;
+        p.typical_value = d->typical_value;
+        if (typed) {
+            p.min_count = d->min_count;
+            p.max_count = d->max_count;
+            if (d->default_string) p.default_string = d->default_string;
+            p.has_typical_string = d->typical_string != nullptr;
+            if (d->typical_string) p.typical_string = d->typical_string;
+        }
+        if (p.type == TALUS_PARAM_REAL_ARRAY) {
+            if (p.max_count > 0 && p.min_count > p.max_count)
+                bad(where, fmt::format("fields 'min_count' ({}) and 'max_count' ({}) are not an "
+                                       "interval",
+                                       p.min_count, p.max_count));
+            if (!p.required() && p.min_count > 0)
+                bad(where, fmt::format("an optional list defaults to the empty list, so "
+                                       "'min_count' must be 0, got {}",
+                                       p.min_count));
+        }
+        if (p.type == TALUS_PARAM_STRING) return p;
+        if (!p.required() && p.scalar()) {
             const std::string why = check_parameter(p, d->default_value);
             if (!why.empty())
                 bad(where, fmt::format("field 'default_value' ({}) is invalid: {}",
@@ -128,6 +225,24 @@ struct DescriptorChecker {
             bad(where,
                 fmt::format("field 'typical_value' ({}) is invalid: {}", d->typical_value, why));
         return p;
+    }
+
+    // The variables of a layout, with their offsets; duplicates refused.
+    StateLayout layout(const talus_state_desc *const *vars, std::uint32_t n,
+                       const std::string &where) const {
+        if (n > 0 && !vars) bad(where, "the state array is null");
+        StateLayout out;
+        std::set<std::string> names;
+        for (std::uint32_t i = 0; i < n; ++i) {
+            const std::string sw = fmt::format("{} state variable #{}", where, i);
+            StateInfo s = state(vars[i], sw);
+            if (!names.insert(s.name).second)
+                bad(sw, fmt::format("name '{}' appears twice", s.name));
+            s.offset = out.size;
+            out.size += s.size;
+            out.vars.push_back(std::move(s));
+        }
+        return out;
     }
 
     StateInfo state(const talus_state_desc *d, const std::string &where) const {
@@ -184,7 +299,84 @@ PluginLibrary::Build read_build_info(const fs::path &file) {
     return b;
 }
 
+// SHA-256 of a file in hex; empty when it cannot be read.
+std::string sha256_of(const fs::path &file) {
+    std::ifstream in(file, std::ios::binary);
+    if (!in) return {};
+    std::unique_ptr<EVP_MD_CTX, decltype(&EVP_MD_CTX_free)> ctx(EVP_MD_CTX_new(), &EVP_MD_CTX_free);
+    if (!ctx || EVP_DigestInit_ex(ctx.get(), EVP_sha256(), nullptr) != 1) return {};
+    std::vector<char> buf(1 << 16);
+    while (in) {
+        in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
+        const auto got = static_cast<std::size_t>(in.gcount());
+        if (got > 0 && EVP_DigestUpdate(ctx.get(), buf.data(), got) != 1) return {};
+    }
+    if (in.bad()) return {};
+    unsigned char md[EVP_MAX_MD_SIZE];
+    unsigned int len = 0;
+    if (EVP_DigestFinal_ex(ctx.get(), md, &len) != 1) return {};
+    std::string hex;
+    for (unsigned int i = 0; i < len; ++i)
+        fmt::format_to(std::back_inserter(hex), "{:02x}", md[i]);
+    return hex;
+}
+
+std::mutex g_log_sink_mutex;
+PluginLogSink g_log_sink;
+
 } // namespace
+
+PluginLogSink set_plugin_log_sink(PluginLogSink sink) {
+    const std::lock_guard lock(g_log_sink_mutex);
+    std::swap(g_log_sink, sink);
+    return sink;
+}
+
+void PluginLibrary::host_log(void *context, std::int32_t level, const char *message) {
+    // Called by plugin code, possibly from several threads inside update:
+    // nothing may escape back across the C ABI.
+    try {
+        auto *lib = static_cast<PluginLibrary *>(context);
+        if (!lib) return;
+        std::size_t n = 0;
+        {
+            const std::lock_guard lock(lib->log_mutex_);
+            n = ++lib->log_count_;
+        }
+        if (n > kPluginLogShown) return;
+        const std::string text = message ? std::string(message, strnlen(message, 4096)) : "";
+        std::string line =
+            fmt::format("{}: plugin {}: {}", level == TALUS_LOG_WARNING ? "warning" : "note",
+                        lib->name_.empty() ? lib->path_.string() : lib->name_, text);
+        if (n == kPluginLogShown)
+            line += fmt::format(" (further messages of this plugin are counted, not shown)");
+        const std::lock_guard lock(g_log_sink_mutex);
+        if (g_log_sink)
+            g_log_sink(line);
+        else
+            std::fprintf(stderr, "%s\n", line.c_str());
+    } catch (...) {
+    }
+}
+
+std::size_t PluginLibrary::log_messages() const {
+    const std::lock_guard lock(log_mutex_);
+    return log_count_;
+}
+
+std::size_t PluginLibrary::log_suppressed() const {
+    const std::size_t n = log_messages();
+    return n > kPluginLogShown ? n - kPluginLogShown : 0;
+}
+
+const void *PluginLibrary::extension(const char *id) const {
+    if (!get_extension_ || !id) return nullptr;
+    try {
+        return get_extension_(id);
+    } catch (...) {
+        return nullptr;
+    }
+}
 
 std::string PluginLibrary::build_text() const {
     if (!build_.known) return "unknown (not built with the Talus SDK's TALUS_MATERIAL_LIBRARY)";
@@ -212,6 +404,7 @@ std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
     lib->handle_ = handle;
     lib->path_ = file;
     lib->build_ = read_build_info(file);
+    lib->hash_ = sha256_of(file);
 
     dlerror();
     void *sym = dlsym(handle, TALUS_MATERIAL_ENTRY_SYMBOL);
@@ -227,6 +420,9 @@ std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
     host.abi_major = TALUS_ABI_VERSION_MAJOR;
     host.abi_minor = TALUS_ABI_VERSION_MINOR;
     host.host_name = host_name();
+    host.log = &PluginLibrary::host_log;
+    host.log_context = lib.get();
+    host.get_extension = [](const char *) -> const void * { return nullptr; };
     const talus_library *desc = nullptr;
     talus_error err = fresh_error();
     std::int32_t status = TALUS_STATUS_FAILED;
@@ -253,9 +449,16 @@ std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
                                 "plugin against this host's SDK",
                                 file.string(), desc->abi_major, desc->abi_minor,
                                 TALUS_ABI_VERSION_MAJOR, TALUS_ABI_VERSION_MINOR));
-    chk.need_size(desc->struct_size, sizeof(talus_library), "library");
+    chk.need_size(desc->struct_size, offsetof(talus_library, get_extension), "library");
     chk.need_string(desc->name, "library", "name");
     chk.need_string(desc->version, "library", "version");
+    // The name prefixes the qualified model ids (library/model).
+    if (!*desc->name || std::strpbrk(desc->name, "/ \t\n"))
+        chk.bad("library", fmt::format("field 'name' ('{}') must be non-empty, without '/' or "
+                                       "spaces: it prefixes the qualified model ids",
+                                       desc->name));
+    if (TALUS_HAS_FIELD(talus_library, desc, get_extension))
+        lib->get_extension_ = desc->get_extension;
     if (desc->n_models == 0)
         chk.bad("library", "field 'n_models' is 0: the library offers no model");
     if (!desc->models) chk.bad("library", "field 'models' is null");
@@ -269,7 +472,7 @@ std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
         const talus_model *md = desc->models[m];
         std::string where = fmt::format("model #{}", m);
         if (!md) chk.bad(where, "null pointer in the models array");
-        chk.need_size(md->struct_size, sizeof(talus_model), where);
+        chk.need_size(md->struct_size, offsetof(talus_model, create_ex), where);
         if (!is_snake_identifier(md->id))
             chk.bad(where, fmt::format("field 'id' must be lower_snake_case, got '{}'",
                                        md->id ? md->id : "(null)"));
@@ -281,7 +484,9 @@ std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
         if (!md->create) chk.bad(where, "field 'create' is null");
         if (!md->destroy) chk.bad(where, "field 'destroy' is null");
         if (!md->update) chk.bad(where, "field 'update' is null");
-        constexpr std::uint32_t known = TALUS_MODEL_FINITE_STRAIN | TALUS_MODEL_TANGENT;
+        constexpr std::uint32_t known = TALUS_MODEL_FINITE_STRAIN | TALUS_MODEL_TANGENT |
+                                        TALUS_MODEL_NOT_REENTRANT | TALUS_MODEL_INSTANCE_STATE |
+                                        TALUS_MODEL_WANTS_ROTATION;
         if (md->flags & ~known)
             chk.bad(where, fmt::format("field 'flags': unknown bits 0x{:x}", md->flags & ~known));
         if (md->n_params > 0 && !md->params) chk.bad(where, "field 'params' is null");
@@ -290,6 +495,19 @@ std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
         Model model;
         model.raw_ = md;
         model.library_ = lib.get();
+        if (TALUS_HAS_FIELD(talus_model, md, init_state)) {
+            model.create_ex_ = md->create_ex;
+            model.instance_state_ = md->instance_state;
+            model.init_state_ = md->init_state;
+        }
+        constexpr std::uint32_t v11 =
+            TALUS_MODEL_NOT_REENTRANT | TALUS_MODEL_INSTANCE_STATE | TALUS_MODEL_WANTS_ROTATION;
+        if ((md->flags & v11) && !TALUS_HAS_FIELD(talus_model, md, init_state))
+            chk.bad(where, fmt::format("flags 0x{:x} are ABI 1.1 but the descriptor is a 1.0 one "
+                                       "(struct_size {})",
+                                       md->flags & v11, md->struct_size));
+        if ((md->flags & TALUS_MODEL_INSTANCE_STATE) && !model.instance_state_)
+            chk.bad(where, "TALUS_MODEL_INSTANCE_STATE is set but 'instance_state' is null");
         model.id_ = md->id;
         model.name_ = md->name;
         model.version_ = md->version;
@@ -297,21 +515,13 @@ std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
         std::set<std::string> keys;
         for (std::uint32_t i = 0; i < md->n_params; ++i) {
             const std::string pw = fmt::format("{} parameter #{}", where, i);
-            ParamInfo p = chk.param(md->params[i], pw);
+            ParamInfo p = chk.param(md->params[i], pw, model.create_ex_ != nullptr);
             if (!keys.insert(p.key).second)
                 chk.bad(pw, fmt::format("key '{}' appears twice", p.key));
             model.params_.push_back(std::move(p));
         }
-        std::set<std::string> names;
-        for (std::uint32_t i = 0; i < md->n_state; ++i) {
-            const std::string sw = fmt::format("{} state variable #{}", where, i);
-            StateInfo s = chk.state(md->state[i], sw);
-            if (!names.insert(s.name).second)
-                chk.bad(sw, fmt::format("name '{}' appears twice", s.name));
-            s.offset = model.state_size_;
-            model.state_size_ += s.size;
-            model.state_.push_back(std::move(s));
-        }
+        // An instance-state model's own table is ignored (material_abi.h).
+        if (!model.instance_state()) model.state_ = chk.layout(md->state, md->n_state, where);
         lib->models_.push_back(std::move(model));
     }
     return lib;
@@ -329,14 +539,26 @@ const Model *PluginLibrary::find(const std::string &id) const {
 
 // ---------------------------------------------------------------- Model --
 
-std::vector<double> Model::initial_state() const {
-    std::vector<double> s(state_size_);
-    for (const StateInfo &v : state_)
-        std::fill_n(s.begin() + v.offset, v.size, v.initial_value);
-    return s;
+std::string Model::qualified_id() const { return library_->name() + "/" + id_; }
+
+std::vector<double> Model::initial_state() const { return state_.initial(); }
+
+std::vector<ParamValue> Model::typical_values() const {
+    std::vector<ParamValue> v;
+    for (const ParamInfo &p : params_)
+        v.push_back(p.typical_param());
+    return v;
 }
 
 std::unique_ptr<MaterialInstance> Model::create(std::span<const double> values) const {
+    std::vector<ParamValue> typed(values.size());
+    for (std::size_t i = 0; i < values.size(); ++i)
+        typed[i].scalar = values[i];
+    return create(typed);
+}
+
+std::unique_ptr<MaterialInstance> Model::create(std::span<const ParamValue> values,
+                                                const CreateContext &context) const {
     if (values.size() != params_.size())
         throw Error(fmt::format("model '{}': {} parameter values given, {} expected", id_,
                                 values.size(), params_.size()));
@@ -345,8 +567,36 @@ std::unique_ptr<MaterialInstance> Model::create(std::span<const double> values) 
     std::int32_t status = TALUS_STATUS_FAILED;
     try {
         const crash::PluginCall call(id_.c_str(), library_->path().c_str());
-        status =
-            raw_->create(values.data(), static_cast<std::uint32_t>(values.size()), &inst, &err);
+        if (create_ex_) {
+            std::vector<talus_param_value> raw(values.size());
+            std::vector<const talus_param_value *> ptrs(values.size());
+            for (std::size_t i = 0; i < values.size(); ++i) {
+                const ParamInfo &p = params_[i];
+                talus_param_value &v = raw[i];
+                v.struct_size = sizeof v;
+                v.type = p.type;
+                v.count = p.type == TALUS_PARAM_REAL_ARRAY ? values[i].reals.size()
+                          : p.type == TALUS_PARAM_STRING   ? values[i].text.size()
+                                                           : 1;
+                v.scalar = values[i].scalar;
+                v.reals = values[i].reals.empty() ? nullptr : values[i].reals.data();
+                v.string = values[i].text.c_str();
+                ptrs[i] = &v;
+            }
+            talus_create_args args{};
+            args.struct_size = sizeof args;
+            args.n_values = static_cast<std::uint32_t>(values.size());
+            args.values = ptrs.data();
+            args.material_name = context.material_name.c_str();
+            args.base_dir = context.base_dir.c_str();
+            status = create_ex_(&args, &inst, &err);
+        } else {
+            std::vector<double> scalars(values.size());
+            for (std::size_t i = 0; i < values.size(); ++i)
+                scalars[i] = values[i].scalar;
+            status = raw_->create(scalars.data(), static_cast<std::uint32_t>(scalars.size()), &inst,
+                                  &err);
+        }
     } catch (...) {
         throw Error(fmt::format("model '{}' ({}): create threw an exception across the C ABI", id_,
                                 library_->path().string()));
@@ -360,6 +610,26 @@ std::unique_ptr<MaterialInstance> Model::create(std::span<const double> values) 
     out->library_ = library_->shared_from_this();
     out->instance_ = inst;
     out->parameters_.assign(values.begin(), values.end());
+    if (instance_state()) {
+        // Destroyed by `out` if the layout is refused.
+        talus_state_layout layout{};
+        layout.struct_size = sizeof layout;
+        err = fresh_error();
+        try {
+            const crash::PluginCall call(id_.c_str(), library_->path().c_str());
+            status = instance_state_(inst, &layout, &err);
+        } catch (...) {
+            throw Error(fmt::format("model '{}' ({}): instance_state threw an exception across "
+                                    "the C ABI",
+                                    id_, library_->path().string()));
+        }
+        if (status != TALUS_STATUS_OK)
+            throw Error(
+                fmt::format("model '{}' could not describe its state: {}", id_, read_message(err)));
+        const DescriptorChecker chk{library_->path()};
+        out->state_ =
+            chk.layout(layout.state, layout.n_state, fmt::format("model '{}' instance state", id_));
+    }
     return out;
 }
 
@@ -373,28 +643,44 @@ MaterialInstance::~MaterialInstance() {
 }
 
 MaterialInstance::Result MaterialInstance::update(talus_batch &b) const noexcept {
+    return call(b, false);
+}
+
+MaterialInstance::Result MaterialInstance::start(talus_batch &b) const noexcept {
+    return call(b, true);
+}
+
+MaterialInstance::Result MaterialInstance::call(talus_batch &b, bool setup) const noexcept {
     Result r;
     b.struct_size = sizeof(talus_batch);
-    b.state_size = model_->state_size();
+    b.state_size = state_size();
+    if (!model_->wants_rotation()) b.rotation = nullptr;
     talus_error err = fresh_error();
+    const bool init = setup && model_->init_state_;
+    const auto fn = init ? model_->init_state_ : model_->raw().update;
+    const char *fn_name = init ? "init_state" : "update";
     try {
         const crash::PluginCall call(model_->id().c_str(), library_->path().c_str());
-        r.status = model_->raw().update(instance_, &b, &err);
+        // A lock per batch, only for models that ask for it (Fortran code
+        // with SAVE or COMMON data): never in the reentrant models' path.
+        std::unique_lock<std::mutex> serial;
+        if (!model_->reentrant()) serial = std::unique_lock<std::mutex>(library_->call_mutex());
+        r.status = fn(instance_, &b, &err);
     } catch (...) {
         r.status = TALUS_STATUS_FAILED;
-        r.message = "an exception escaped the plugin's update across the C ABI";
+        r.message = fmt::format("an exception escaped the plugin's {} across the C ABI", fn_name);
         return r;
     }
     if (r.status != TALUS_STATUS_OK) {
         if (r.status != TALUS_STATUS_FAILED && r.status != TALUS_STATUS_CUT_STEP) {
-            r.message = fmt::format("update returned the unknown status {}", r.status);
+            r.message = fmt::format("{} returned the unknown status {}", fn_name, r.status);
             r.status = TALUS_STATUS_FAILED;
             return r;
         }
         r.point = err.point_index;
         r.cut_factor = err.cut_factor;
         r.message = read_message(err);
-        if (r.message.empty()) r.message = "update failed without a message";
+        if (r.message.empty()) r.message = fmt::format("{} failed without a message", fn_name);
         if (r.status == TALUS_STATUS_CUT_STEP && !(r.cut_factor > 0.0 && r.cut_factor < 1.0)) {
             r.message = fmt::format("cut-step request with an invalid factor {} (expected 0 < "
                                     "factor < 1): {}",
@@ -497,13 +783,13 @@ const PluginLibrary &PluginRegistry::add(const fs::path &file) {
     for (const auto &lib : libraries_)
         if (lib->path() == canon) return *lib;
     std::shared_ptr<PluginLibrary> lib = PluginLibrary::open(canon);
-    for (const Model &m : lib->models())
-        for (const auto &other : libraries_)
-            if (other->find(m.id()))
-                throw Error(
-                    fmt::format("duplicate model id '{}': offered by both {} and {}; remove "
-                                "one of them from the plugin search path",
-                                m.id(), other->path().string(), canon.string()));
+    // Model ids may repeat across libraries (they are told apart by the
+    // qualified id library/model), library names may not.
+    for (const auto &other : libraries_)
+        if (other->name() == lib->name())
+            throw Error(fmt::format("two plugin libraries are named '{}': {} and {}; remove one "
+                                    "of them from the plugin search path",
+                                    lib->name(), other->path().string(), canon.string()));
     libraries_.push_back(std::move(lib));
     return *libraries_.back();
 }
@@ -558,15 +844,36 @@ void PluginRegistry::load_all() {
 }
 
 const Model &PluginRegistry::find_model(const std::string &id) {
-    for (const auto &lib : libraries_)
-        if (const Model *m = lib->find(id)) return *m;
-    load_all();
-    std::vector<std::string> known;
-    for (const auto &lib : libraries_) {
-        if (const Model *m = lib->find(id)) return *m;
-        for (const Model &m : lib->models())
-            known.push_back(m.id());
+    const auto slash = id.find('/');
+    const std::string lib_name = slash == std::string::npos ? "" : id.substr(0, slash);
+    const std::string model_id = slash == std::string::npos ? id : id.substr(slash + 1);
+    // The models offering the id among the loaded libraries.
+    auto offering = [&] {
+        std::vector<const Model *> found;
+        for (const auto &lib : libraries_)
+            if (lib_name.empty() || lib->name() == lib_name)
+                if (const Model *m = lib->find(model_id)) found.push_back(m);
+        return found;
+    };
+    std::vector<const Model *> found = offering();
+    if (found.empty()) {
+        load_all();
+        found = offering();
     }
+    if (found.size() == 1) return *found.front();
+    if (found.size() > 1) {
+        std::string which;
+        for (const Model *m : found)
+            fmt::format_to(std::back_inserter(which), "\n  {} ({})", m->qualified_id(),
+                           m->library().path().string());
+        throw Error(fmt::format("the material model id '{}' is offered by {} libraries; name one "
+                                "by its qualified id:{}",
+                                id, found.size(), which));
+    }
+    std::vector<std::string> known;
+    for (const auto &lib : libraries_)
+        for (const Model &m : lib->models())
+            known.push_back(slash == std::string::npos ? m.id() : m.qualified_id());
     std::string dirs;
     for (const fs::path &d : search_dirs())
         dirs += "\n  " + d.string();

@@ -26,7 +26,7 @@ namespace talus::bench_only {
 inline bool inline_hooke(const MaterialInstance &m, std::size_t count, const double *stress_in,
                          const double *de, const double *rho, double *stress_out, double *c) {
     if (m.model().id() != "linear_elastic") return false;
-    const double E = m.parameters()[0], nu = m.parameters()[1];
+    const double E = m.parameters()[0].scalar, nu = m.parameters()[1].scalar;
     const double shear = E / (2.0 * (1.0 + nu));
     const double lambda = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
     const double p_wave = lambda + 2.0 * shear;

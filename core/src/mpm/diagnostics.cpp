@@ -100,7 +100,7 @@ ResourceEstimate estimate_resources(const Scenario &sc) {
         // key and permutation.
         ParticleSet probe;
         probe.dim = D;
-        probe.state_size = sc.materials[g.material].spec.model->state_size();
+        probe.state_size = sc.materials[g.material].spec.state.size;
         e.bytes += n * (static_cast<double>(probe.bytes_per_particle()) + 12 + 16);
     }
     return e;

@@ -20,7 +20,7 @@ ParticleSet new_set(const Scenario &sc, std::size_t material, ColumnsInUse colum
     s.material = material;
     s.instance = instance;
     s.finite_strain = m.spec.model->finite_strain();
-    s.state_size = m.spec.model->state_size();
+    s.state_size = m.spec.state.size;
     s.rho0 = m.spec.density;
     s.dim = sc.dim;
     s.has_C = columns.C;

@@ -7,7 +7,7 @@
 
 #include <stddef.h>
 
-#define TALUS_LAYOUT_ENTRIES 64
+#define TALUS_LAYOUT_ENTRIES 96
 
 #define TALUS_LAYOUT_FILL(out, n)                                                                  \
     do {                                                                                           \
@@ -20,6 +20,9 @@
         out[k_++] = offsetof(talus_host_info, abi_major);                                          \
         out[k_++] = offsetof(talus_host_info, abi_minor);                                          \
         out[k_++] = offsetof(talus_host_info, host_name);                                          \
+        out[k_++] = offsetof(talus_host_info, log);                                                \
+        out[k_++] = offsetof(talus_host_info, log_context);                                        \
+        out[k_++] = offsetof(talus_host_info, get_extension);                                      \
         out[k_++] = sizeof(talus_param_desc);                                                      \
         out[k_++] = offsetof(talus_param_desc, type);                                              \
         out[k_++] = offsetof(talus_param_desc, flags);                                             \
@@ -30,6 +33,10 @@
         out[k_++] = offsetof(talus_param_desc, min_value);                                         \
         out[k_++] = offsetof(talus_param_desc, max_value);                                         \
         out[k_++] = offsetof(talus_param_desc, typical_value);                                     \
+        out[k_++] = offsetof(talus_param_desc, min_count);                                         \
+        out[k_++] = offsetof(talus_param_desc, max_count);                                         \
+        out[k_++] = offsetof(talus_param_desc, default_string);                                    \
+        out[k_++] = offsetof(talus_param_desc, typical_string);                                    \
         out[k_++] = sizeof(talus_state_desc);                                                      \
         out[k_++] = offsetof(talus_state_desc, flags);                                             \
         out[k_++] = offsetof(talus_state_desc, size);                                              \
@@ -53,6 +60,10 @@
         out[k_++] = offsetof(talus_batch, state_end);                                              \
         out[k_++] = offsetof(talus_batch, wave_speed);                                             \
         out[k_++] = offsetof(talus_batch, tangent);                                                \
+        out[k_++] = offsetof(talus_batch, step);                                                   \
+        out[k_++] = offsetof(talus_batch, point_id);                                               \
+        out[k_++] = offsetof(talus_batch, characteristic_length);                                  \
+        out[k_++] = offsetof(talus_batch, rotation);                                               \
         out[k_++] = sizeof(talus_model);                                                           \
         out[k_++] = offsetof(talus_model, flags);                                                  \
         out[k_++] = offsetof(talus_model, n_params);                                               \
@@ -66,6 +77,9 @@
         out[k_++] = offsetof(talus_model, create);                                                 \
         out[k_++] = offsetof(talus_model, destroy);                                                \
         out[k_++] = offsetof(talus_model, update);                                                 \
+        out[k_++] = offsetof(talus_model, create_ex);                                              \
+        out[k_++] = offsetof(talus_model, instance_state);                                         \
+        out[k_++] = offsetof(talus_model, init_state);                                             \
         out[k_++] = sizeof(talus_library);                                                         \
         out[k_++] = offsetof(talus_library, abi_major);                                            \
         out[k_++] = offsetof(talus_library, abi_minor);                                            \
@@ -73,6 +87,21 @@
         out[k_++] = offsetof(talus_library, name);                                                 \
         out[k_++] = offsetof(talus_library, version);                                              \
         out[k_++] = offsetof(talus_library, models);                                               \
+        out[k_++] = offsetof(talus_library, get_extension);                                        \
+        out[k_++] = sizeof(talus_state_layout);                                                    \
+        out[k_++] = offsetof(talus_state_layout, n_state);                                         \
+        out[k_++] = offsetof(talus_state_layout, state);                                           \
+        out[k_++] = sizeof(talus_param_value);                                                     \
+        out[k_++] = offsetof(talus_param_value, type);                                             \
+        out[k_++] = offsetof(talus_param_value, count);                                            \
+        out[k_++] = offsetof(talus_param_value, scalar);                                           \
+        out[k_++] = offsetof(talus_param_value, reals);                                            \
+        out[k_++] = offsetof(talus_param_value, string);                                           \
+        out[k_++] = sizeof(talus_create_args);                                                     \
+        out[k_++] = offsetof(talus_create_args, n_values);                                         \
+        out[k_++] = offsetof(talus_create_args, values);                                           \
+        out[k_++] = offsetof(talus_create_args, material_name);                                    \
+        out[k_++] = offsetof(talus_create_args, base_dir);                                         \
         (n) = k_;                                                                                  \
     } while (0)
 

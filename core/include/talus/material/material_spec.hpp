@@ -24,7 +24,10 @@ struct MaterialSpec {
     std::string name; // the YAML key path, for messages
     const Model *model = nullptr;
     double density = 0.0;              // reference (initial) density
-    std::vector<double> param_values;  // in the order of model->params()
+    std::vector<ParamValue> params;    // in the order of model->params()
+    CreateContext context;             // the user's name and the file's folder
+    StateLayout state;                 // the points' state layout (the model's or,
+                                       // for an instance-state model, its instance's)
     std::vector<double> initial_state; // one point's state at t = 0
 };
 

@@ -6,10 +6,13 @@
 //   3. the directories in the TALUS_PLUGIN_PATH environment variable;
 //   4. the shipped plugins beside the running executable: <bin>/../plugins
 //      (a build tree), then <bin>/../lib/talus/plugins (an installation).
-// A name N matches the files N, talus_N.so and N.so. A model id is found by
-// scanning every talus_*.so on the search path; a file name seen in an
-// earlier directory shadows the same name later, and two different libraries
-// offering the same model id is an error.
+// A name N matches the files N, talus_N.so and N.so. A model is named by
+// its qualified id "library/model" (never ambiguous) or by its model id
+// alone: that is taken from the loaded libraries (a scenario's `plugins:`
+// list) when exactly one of them offers it, else found by scanning every
+// talus_*.so on the search path, where exactly one library must offer it. A
+// file name seen in an earlier directory shadows the same name later; two
+// libraries of the same name are an error.
 #pragma once
 
 #include <talus/error.hpp>
@@ -17,24 +20,50 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
+#include <mutex>
 #include <span>
 #include <string>
 #include <vector>
 
 namespace talus {
 
+// One parameter's value: `scalar` for REAL, INTEGER and BOOLEAN, `reals`
+// for REAL_ARRAY, `text` for STRING (ABI 1.1).
+struct ParamValue {
+    double scalar = 0.0;
+    std::vector<double> reals;
+    std::string text;
+    bool operator==(const ParamValue &) const = default;
+};
+
 struct ParamInfo {
     std::string key, unit, doc;
     std::uint32_t type = TALUS_PARAM_REAL;
     std::uint32_t flags = 0;
     double default_value = 0.0, min_value = 0.0, max_value = 0.0, typical_value = 0.0;
+    // REAL_ARRAY: allowed counts (max_count 0: no limit). STRING: default
+    // and example (has_typical_string false: the plugin gave none).
+    std::uint32_t min_count = 0, max_count = 0;
+    std::string default_string{}, typical_string{};
+    bool has_typical_string = false;
 
     bool required() const { return (flags & TALUS_PARAM_REQUIRED) != 0; }
+    bool scalar() const { return type <= TALUS_PARAM_BOOLEAN; }
     bool in_bounds(double v) const;
-    // "-1 < poisson_ratio < 0.5", "youngs_modulus > 0", "any value".
+    // "-1 < poisson_ratio < 0.5", "youngs_modulus > 0", "any value"; for an
+    // array, the bound of each value.
     std::string bounds_text() const;
+    // "3 to 10 values", "at least 1 value": REAL_ARRAY only.
+    std::string count_text() const;
     const char *type_name() const;
+    // The value used when the user omits it (not required), and the one the
+    // conformance checks and docs use.
+    ParamValue default_param() const;
+    ParamValue typical_param() const;
+    // The value as text, for messages and provenance ("2e+07", "[1, 2]").
+    std::string value_text(const ParamValue &v) const;
 };
 
 struct StateInfo {
@@ -47,6 +76,20 @@ struct StateInfo {
     bool user_initialisable() const { return (flags & TALUS_STATE_USER_INIT) != 0; }
 };
 
+// A state layout: the variables in order and the doubles per point.
+struct StateLayout {
+    std::vector<StateInfo> vars;
+    std::uint32_t size = 0;
+    // One point's state with every variable at its initial value.
+    std::vector<double> initial() const;
+};
+
+// Where a material's parameters come from, for create_ex and messages.
+struct CreateContext {
+    std::string material_name; // the user's name, e.g. "materials.sand"
+    std::string base_dir;      // folder of the file it was read from ("" if none)
+};
+
 class PluginLibrary;
 class MaterialInstance;
 
@@ -56,12 +99,22 @@ class Model {
     const std::string &id() const { return id_; }
     const std::string &name() const { return name_; }
     const std::string &version() const { return version_; }
+    // "library/model": unique among the loaded libraries.
+    std::string qualified_id() const;
     const std::string &doc() const { return doc_; }
+    std::uint32_t flags() const { return raw_->flags; }
     bool finite_strain() const { return (raw_->flags & TALUS_MODEL_FINITE_STRAIN) != 0; }
     bool has_tangent() const { return (raw_->flags & TALUS_MODEL_TANGENT) != 0; }
+    bool reentrant() const { return (raw_->flags & TALUS_MODEL_NOT_REENTRANT) == 0; }
+    bool wants_rotation() const { return (raw_->flags & TALUS_MODEL_WANTS_ROTATION) != 0; }
+    // The state layout is the instance's (MaterialInstance::state()); the
+    // model's own state() is then empty.
+    bool instance_state() const { return (raw_->flags & TALUS_MODEL_INSTANCE_STATE) != 0; }
+    bool has_init_state() const { return init_state_ != nullptr; }
     const std::vector<ParamInfo> &params() const { return params_; }
-    const std::vector<StateInfo> &state() const { return state_; }
-    std::uint32_t state_size() const { return state_size_; }
+    const std::vector<StateInfo> &state() const { return state_.vars; }
+    std::uint32_t state_size() const { return state_.size; }
+    const StateLayout &state_layout() const { return state_; }
     // Initial state vector of one point (each variable at its initial value).
     std::vector<double> initial_state() const;
     const PluginLibrary &library() const { return *library_; }
@@ -69,17 +122,27 @@ class Model {
 
     // Parameter values in the order of params(), already checked by the
     // caller against type and bounds (see check_parameter()). Throws
-    // talus::Error with the plugin's message if it rejects them.
+    // talus::Error with the plugin's message if it rejects them, or if an
+    // instance-state model reports an invalid layout.
+    std::unique_ptr<MaterialInstance> create(std::span<const ParamValue> values,
+                                             const CreateContext &context = {}) const;
+    // The same for a model whose parameters are all scalars.
     std::unique_ptr<MaterialInstance> create(std::span<const double> values) const;
+    // Every parameter at its typical value.
+    std::vector<ParamValue> typical_values() const;
 
   private:
     friend class PluginLibrary;
+    friend class MaterialInstance;
     const talus_model *raw_ = nullptr;
     const PluginLibrary *library_ = nullptr;
+    // 1.1 functions, null when the plugin's descriptor predates them.
+    decltype(talus_model::create_ex) create_ex_ = nullptr;
+    decltype(talus_model::instance_state) instance_state_ = nullptr;
+    decltype(talus_model::init_state) init_state_ = nullptr;
     std::string id_, name_, version_, doc_;
     std::vector<ParamInfo> params_;
-    std::vector<StateInfo> state_;
-    std::uint32_t state_size_ = 0;
+    StateLayout state_;
 };
 
 // An open plugin library. Closes it (dlclose) when the last user is gone.
@@ -99,6 +162,17 @@ class PluginLibrary : public std::enable_shared_from_this<PluginLibrary> {
     std::uint32_t abi_minor() const { return abi_minor_; }
     const std::vector<Model> &models() const { return models_; }
     const Model *find(const std::string &id) const;
+    // SHA-256 of the library file as loaded, in hex (what sha256sum prints).
+    const std::string &content_hash() const { return hash_; }
+    // The library's extension by id, or null (ABI 1.1 get_extension).
+    const void *extension(const char *id) const;
+
+    // Serialises calls into a library whose models are not reentrant.
+    std::mutex &call_mutex() const { return call_mutex_; }
+    // Messages the plugin sent through the host's log callback, and how
+    // many of them were not shown (past the first kPluginLogShown).
+    std::size_t log_messages() const;
+    std::size_t log_suppressed() const;
 
     // How the library was compiled, from the string the SDK embeds
     // (TALUS_SDK_BUILD_INFO); unknown for plugins written without the SDK.
@@ -112,13 +186,25 @@ class PluginLibrary : public std::enable_shared_from_this<PluginLibrary> {
   private:
     PluginLibrary() = default;
     friend class Model;
+    static void host_log(void *context, std::int32_t level, const char *message);
     void *handle_ = nullptr;
     std::filesystem::path path_;
-    std::string name_, version_;
+    std::string name_, version_, hash_;
     std::uint32_t abi_major_ = 0, abi_minor_ = 0;
     std::vector<Model> models_;
     Build build_;
+    decltype(talus_library::get_extension) get_extension_ = nullptr;
+    mutable std::mutex call_mutex_, log_mutex_;
+    std::size_t log_count_ = 0;
 };
+
+// Where plugins' log messages go (default: stderr), one finished line each
+// ("warning: plugin talus_x: ..."). Each library shows its first
+// kPluginLogShown messages; later ones are only counted. Returns the
+// previous sink.
+inline constexpr std::size_t kPluginLogShown = 20;
+using PluginLogSink = std::function<void(const std::string &)>;
+PluginLogSink set_plugin_log_sink(PluginLogSink sink);
 
 // One material: a model with one set of parameter values. Owns the plugin's
 // instance and keeps its library loaded.
@@ -131,7 +217,13 @@ class MaterialInstance {
     const Model &model() const { return *model_; }
     // The parameter values it was created with, in the order of
     // model().params().
-    const std::vector<double> &parameters() const { return parameters_; }
+    const std::vector<ParamValue> &parameters() const { return parameters_; }
+    // The state layout of its points: the model's, or with
+    // TALUS_MODEL_INSTANCE_STATE the instance's own.
+    const StateLayout &state() const {
+        return model_->instance_state() ? state_ : model_->state_layout();
+    }
+    std::uint32_t state_size() const { return state().size; }
 
     struct Result {
         std::int32_t status = TALUS_STATUS_OK;
@@ -147,16 +239,22 @@ class MaterialInstance {
     // state_size are set here). Never throws: a plugin failure, a cut-step
     // request, an exception escaping the plugin, or a non-finite value in any
     // requested output all come back in Result, with the point named.
-    // Reentrant, as the plugin's update must be.
+    // Callable from several threads: calls into a model that is not
+    // reentrant are serialised here.
     Result update(talus_batch &batch) const noexcept;
+    // The set-up call before the first step (batch.dt = 0, step 0): the
+    // model's init_state when it has one, else update (material_abi.h).
+    Result start(talus_batch &batch) const noexcept;
 
   private:
     friend class Model;
     MaterialInstance() = default;
+    Result call(talus_batch &batch, bool setup) const noexcept;
     const Model *model_ = nullptr;
     std::shared_ptr<const PluginLibrary> library_;
     talus_instance *instance_ = nullptr;
-    std::vector<double> parameters_;
+    std::vector<ParamValue> parameters_;
+    StateLayout state_;
 };
 
 class PluginRegistry {
@@ -198,6 +296,8 @@ class PluginRegistry {
 // Checks one user value against a parameter's type and bounds; returns an
 // empty string when fine, else what was expected ("expected -1 < nu < 0.5").
 std::string check_parameter(const ParamInfo &p, double value);
+// The same for a value of any type (an array: its count and each value).
+std::string check_parameter(const ParamInfo &p, const ParamValue &value);
 
 // The host's own identification passed to plugins ("talus 0.1.0").
 const char *host_name();

@@ -15,6 +15,8 @@
 //       void update(const talus::sdk::PointIn &in, talus::sdk::PointOut &out) const;
 //       double wave_speed(const talus::sdk::PointIn &in,
 //                         const talus::sdk::PointOut &out) const;
+//       // optional (ABI 1.1): the set-up call before the first step
+//       void init_state(const talus::sdk::PointIn &in, talus::sdk::PointOut &out) const;
 //   };
 //   TALUS_MATERIAL_LIBRARY("my_library", "1.0.0", MyModel)
 //
@@ -59,6 +61,11 @@ struct Param {
     double min_value = -std::numeric_limits<double>::infinity();
     double max_value = std::numeric_limits<double>::infinity();
     double typical_value = 0.0;
+    // ABI 1.1: a list's allowed counts (max 0: no limit); a string's
+    // default and example.
+    std::uint32_t min_count = 0, max_count = 0;
+    const char *default_string = nullptr;
+    const char *typical_string = nullptr;
 
     // The user must give it (no default).
     constexpr Param required() const {
@@ -78,6 +85,27 @@ struct Param {
     constexpr Param typical(double v) const {
         Param p = *this;
         p.typical_value = v;
+        return p;
+    }
+    // A string parameter's default (also its example unless typical() says
+    // otherwise) and example.
+    constexpr Param defaults_to(const char *v) const {
+        Param p = *this;
+        p.flags &= ~TALUS_PARAM_REQUIRED;
+        p.default_string = v;
+        p.typical_string = v;
+        return p;
+    }
+    constexpr Param typical(const char *v) const {
+        Param p = *this;
+        p.typical_string = v;
+        return p;
+    }
+    // A list's allowed number of values (max 0: no limit).
+    constexpr Param counts(std::uint32_t min, std::uint32_t max) const {
+        Param p = *this;
+        p.min_count = min;
+        p.max_count = max;
         return p;
     }
     constexpr Param above(double v) const { return bound_min(v, true); }
@@ -112,6 +140,19 @@ constexpr Param real(const char *key, const char *unit, const char *doc) {
 constexpr Param integer(const char *key, const char *unit, const char *doc) {
     Param p = real(key, unit, doc);
     p.type = TALUS_PARAM_INTEGER;
+    return p;
+}
+// ABI 1.1: a list of reals (YAML sequence; bounds apply to each value) and
+// a string (e.g. a file name: resolve it against ParamValues::base_dir()).
+// A model with either needs a 1.1 host; the SDK says so to an older one.
+constexpr Param reals(const char *key, const char *unit, const char *doc) {
+    Param p = real(key, unit, doc);
+    p.type = TALUS_PARAM_REAL_ARRAY;
+    return p;
+}
+constexpr Param text(const char *key, const char *doc) {
+    Param p = real(key, "-", doc);
+    p.type = TALUS_PARAM_STRING;
     return p;
 }
 constexpr Param boolean(const char *key, const char *doc) {
@@ -168,6 +209,9 @@ struct ModelInfo {
     const char *doc = "";
     bool finite_strain = false; // computes stress from F, owns objectivity
     bool tangent = false;       // update() fills out.tangent when asked
+    // ABI 1.1:
+    bool reentrant = true;       // false: the host never calls it from two threads at once
+    bool wants_rotation = false; // PointIn::rotation is filled (tensor state to rotate)
 };
 
 // ------------------------------------------------------------ exceptions --
@@ -185,25 +229,54 @@ struct CutStep : std::runtime_error {
 
 // --------------------------------------------------------- author-facing --
 
+// One parameter's value as the host gave it.
+struct ParamValue {
+    double scalar = 0.0;
+    std::span<const double> reals; // a list (ABI 1.1)
+    std::string_view text;         // a string (ABI 1.1)
+};
+
 // Parameter values handed to a model's constructor, already checked by the
-// host against the table (type, bounds, required).
+// host against the table (type, bounds, counts, required).
 class ParamValues {
   public:
-    ParamValues(std::span<const Param> table, std::span<const double> values)
-        : table_(table), values_(values) {}
+    ParamValues(std::span<const Param> table, std::span<const ParamValue> values,
+                std::string_view material_name = {}, std::string_view base_dir = {})
+        : table_(table), values_(values), material_(material_name), base_dir_(base_dir) {}
 
-    // Value by YAML key. An unknown key is a bug in the model: throws.
-    double operator[](std::string_view key) const {
-        for (std::size_t i = 0; i < table_.size(); ++i)
-            if (key == table_[i].key) return values_[i];
-        throw std::logic_error("model asked for undeclared parameter '" + std::string(key) + "'");
+    // Value by YAML key. An unknown key, or one of another type, is a bug in
+    // the model: throws.
+    double operator[](std::string_view key) const { return value(key, false).scalar; }
+    // A list parameter's values (ABI 1.1).
+    std::span<const double> list(std::string_view key) const {
+        return value(key, TALUS_PARAM_REAL_ARRAY).reals;
     }
-    double at(std::size_t index) const { return values_[index]; }
+    // A string parameter's value (ABI 1.1).
+    std::string_view text(std::string_view key) const {
+        return value(key, TALUS_PARAM_STRING).text;
+    }
+    double at(std::size_t index) const { return values_[index].scalar; }
     std::size_t size() const { return values_.size(); }
+    // The user's name for the material, and the folder of the file it came
+    // from (for relative paths); empty from a 1.0 host.
+    std::string_view material_name() const { return material_; }
+    std::string_view base_dir() const { return base_dir_; }
 
   private:
+    const ParamValue &value(std::string_view key, std::uint32_t type) const {
+        for (std::size_t i = 0; i < table_.size(); ++i) {
+            if (key != table_[i].key) continue;
+            const bool scalar = table_[i].type <= TALUS_PARAM_BOOLEAN;
+            if (type == 0 ? !scalar : table_[i].type != type)
+                throw std::logic_error("model asked for parameter '" + std::string(key) +
+                                       "' as another type than it declared");
+            return values_[i];
+        }
+        throw std::logic_error("model asked for undeclared parameter '" + std::string(key) + "'");
+    }
     std::span<const Param> table_;
-    std::span<const double> values_;
+    std::span<const ParamValue> values_;
+    std::string_view material_, base_dir_;
 };
 
 using RowMat3 = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
@@ -217,6 +290,13 @@ struct PointIn {
         : strain_increment(de), F_start(F0), F_end(F1), stress(Eigen::Map<const Vec6>(s0)) {}
     double time = 0.0;
     double dt = 0.0;
+    // ABI 1.1 context (from a 1.0 host: step and point_id -1, the length
+    // NaN, rotation null). rotation: row-major 3x3, with
+    // ModelInfo::wants_rotation.
+    std::int64_t step = -1;
+    std::int64_t point_id = -1;
+    double characteristic_length = std::numeric_limits<double>::quiet_NaN();
+    const double *rotation = nullptr;
     Eigen::Map<const Vec6> strain_increment; // engineering shear
     Eigen::Map<const RowMat3> F_start;
     Eigen::Map<const RowMat3> F_end;
@@ -235,6 +315,16 @@ struct PointOut {
 
 // ------------------------------------------------------------ internals --
 namespace detail {
+struct HostLog;
+} // namespace detail
+
+// Reports something worth a user's attention without failing, through the
+// host's log (ABI 1.1; dropped by a 1.0 host). Any thread, also inside
+// update. The host shows the first messages and counts the rest.
+inline void log_warning(std::string_view message);
+inline void log_info(std::string_view message);
+
+namespace detail {
 
 inline void write_message(talus_error *err, std::string_view msg) {
     if (!err || err->struct_size < offsetof(talus_error, message) + 1) return;
@@ -252,6 +342,14 @@ inline std::int32_t fail(talus_error *err, std::int64_t point, std::string_view 
     write_message(err, msg);
     return TALUS_STATUS_FAILED;
 }
+
+// The host's log callback, kept from the entry call (one per plugin
+// library: the SDK is compiled into each).
+struct HostLog {
+    void (*log)(void *, std::int32_t, const char *) = nullptr;
+    void *context = nullptr;
+};
+inline HostLog host_log;
 
 template <std::size_t N>
 constexpr std::uint32_t total_state_size(const std::array<State, N> &s) {
@@ -299,7 +397,11 @@ struct Descriptors {
                                       p.default_value,
                                       p.min_value,
                                       p.max_value,
-                                      p.typical_value};
+                                      p.typical_value,
+                                      p.min_count,
+                                      p.max_count,
+                                      p.default_string,
+                                      p.typical_string};
         }
         return out;
     }
@@ -327,17 +429,24 @@ struct Descriptors {
     static constexpr std::array<const talus_param_desc *, n_params> param_ptrs = pointers(params);
     static constexpr std::array<const talus_state_desc *, n_state> state_ptrs = pointers(state);
 
-    static std::int32_t create(const double *values, std::uint32_t n, talus_instance **out,
-                               talus_error *err) noexcept {
-        if (!out) return fail(err, -1, "create: null instance pointer");
-        *out = nullptr;
-        if (n != n_params)
-            return fail(err, -1,
-                        "create: expected " + std::to_string(n_params) + " parameter values, got " +
-                            std::to_string(n));
+    static constexpr bool scalar_params = [] {
+        for (const Param &p : M::params)
+            if (p.type > TALUS_PARAM_BOOLEAN) return false;
+        return true;
+    }();
+    // Whether the model needs a host of ABI 1.1 or later.
+    static constexpr bool needs_1_1 =
+        !scalar_params || !M::info.reentrant || M::info.wants_rotation;
+    static constexpr bool has_init_state = requires(const M &m, const PointIn &in, PointOut &out) {
+        m.init_state(in, out);
+    };
+
+    static std::int32_t construct(std::span<const ParamValue> values, std::string_view material,
+                                  std::string_view base_dir, talus_instance **out,
+                                  talus_error *err) noexcept {
         try {
-            const ParamValues pv(std::span<const Param>(M::params.data(), n_params),
-                                 std::span<const double>(values, n));
+            const ParamValues pv(std::span<const Param>(M::params.data(), n_params), values,
+                                 material, base_dir);
             *out = reinterpret_cast<talus_instance *>(new M(pv));
             return TALUS_STATUS_OK;
         } catch (const std::exception &e) {
@@ -347,10 +456,64 @@ struct Descriptors {
         }
     }
 
+    static std::int32_t create(const double *values, std::uint32_t n, talus_instance **out,
+                               talus_error *err) noexcept {
+        if (!out) return fail(err, -1, "create: null instance pointer");
+        *out = nullptr;
+        if (!scalar_params)
+            return fail(err, -1,
+                        "create: this model has list or string parameters, which need a "
+                        "host of Talus material ABI 1.1 or later (create_ex)");
+        if (n != n_params)
+            return fail(err, -1,
+                        "create: expected " + std::to_string(n_params) + " parameter values, got " +
+                            std::to_string(n));
+        std::array<ParamValue, n_params == 0 ? 1 : n_params> typed{};
+        for (std::size_t i = 0; i < n; ++i)
+            typed[i].scalar = values[i];
+        return construct(std::span<const ParamValue>(typed.data(), n), {}, {}, out, err);
+    }
+
+    static std::int32_t create_ex(const talus_create_args *args, talus_instance **out,
+                                  talus_error *err) noexcept {
+        if (!out || !args) return fail(err, -1, "create_ex: null arguments or instance pointer");
+        *out = nullptr;
+        if (args->n_values != n_params || (n_params > 0 && !args->values))
+            return fail(err, -1,
+                        "create_ex: expected " + std::to_string(n_params) +
+                            " parameter values, got " + std::to_string(args->n_values));
+        std::array<ParamValue, n_params == 0 ? 1 : n_params> typed{};
+        for (std::size_t i = 0; i < n_params; ++i) {
+            const talus_param_value *v = args->values[i];
+            if (!v || v->type != M::params[i].type)
+                return fail(err, -1,
+                            std::string("create_ex: parameter '") + M::params[i].key +
+                                "' is missing or of another type than declared");
+            typed[i].scalar = v->scalar;
+            if (v->type == TALUS_PARAM_REAL_ARRAY && v->count > 0)
+                typed[i].reals = std::span<const double>(v->reals, v->count);
+            if (v->type == TALUS_PARAM_STRING && v->string)
+                typed[i].text = std::string_view(v->string, v->count);
+        }
+        return construct(std::span<const ParamValue>(typed.data(), n_params),
+                         args->material_name ? args->material_name : "",
+                         args->base_dir ? args->base_dir : "", out, err);
+    }
+
     static void destroy(talus_instance *inst) noexcept { delete reinterpret_cast<M *>(inst); }
 
     static std::int32_t update(const talus_instance *inst, const talus_batch *b,
                                talus_error *err) noexcept {
+        return run(inst, b, err, false);
+    }
+    static std::int32_t init_state(const talus_instance *inst, const talus_batch *b,
+                                   talus_error *err) noexcept {
+        return run(inst, b, err, true);
+    }
+
+    // The batch loop of update (setup false) and init_state (true).
+    static std::int32_t run(const talus_instance *inst, const talus_batch *b, talus_error *err,
+                            bool setup) noexcept {
         if (!inst || !b) return fail(err, -1, "update: null instance or batch");
         if (b->struct_size < offsetof(talus_batch, tangent) + sizeof(double *))
             return fail(err, -1, "update: batch structure too small for ABI 1.0");
@@ -367,6 +530,15 @@ struct Descriptors {
              !b->stress_end || (state_size > 0 && (!b->state_start || !b->state_end)) ||
              (want_c && !b->wave_speed) || (want_t && !b->tangent)))
             return fail(err, -1, "update: a required batch array is null");
+        // The 1.1 context, when the host knows it.
+        const bool v11 = TALUS_HAS_FIELD(talus_batch, b, rotation);
+        const std::int64_t *ids = v11 ? b->point_id : nullptr;
+        const double *lengths = v11 ? b->characteristic_length : nullptr;
+        const double *rotations = v11 ? b->rotation : nullptr;
+        if (M::info.wants_rotation && b->n_points > 0 && !rotations)
+            return fail(err, -1,
+                        "update: the model needs the increment's rotation and the host "
+                        "gave none");
 
         const M &model = *reinterpret_cast<const M *>(inst);
         // The inputs are screened for the whole batch first, in vector-wide
@@ -408,6 +580,10 @@ struct Descriptors {
                 in.time = b->time;
                 in.dt = b->dt;
                 in.density = b->density[k];
+                if (v11) in.step = b->step;
+                if (ids) in.point_id = ids[k];
+                if (lengths) in.characteristic_length = lengths[k];
+                if (rotations) in.rotation = rotations + 9 * k;
                 // With an in-place update the start state is copied aside
                 // before the model may overwrite it.
                 // (sized by the model's own state, known at compile time)
@@ -428,7 +604,14 @@ struct Descriptors {
                 out.tangent = want_t ? &tangent : nullptr;
                 // From here on the start state may already be overwritten
                 // (aliasing), so `in` holds the only copy of the inputs.
-                model.update(in, out);
+                if constexpr (has_init_state) {
+                    if (setup)
+                        model.init_state(in, out);
+                    else
+                        model.update(in, out);
+                } else {
+                    model.update(in, out);
+                }
 
                 // The outputs are not screened here: the host screens every
                 // plugin's outputs after the batch (NaN, infinities and
@@ -459,7 +642,9 @@ struct Descriptors {
     static constexpr talus_model model = {
         sizeof(talus_model),
         (M::info.finite_strain ? TALUS_MODEL_FINITE_STRAIN : 0u) |
-            (M::info.tangent ? TALUS_MODEL_TANGENT : 0u),
+            (M::info.tangent ? TALUS_MODEL_TANGENT : 0u) |
+            (M::info.reentrant ? 0u : TALUS_MODEL_NOT_REENTRANT) |
+            (M::info.wants_rotation ? TALUS_MODEL_WANTS_ROTATION : 0u),
         static_cast<std::uint32_t>(n_params),
         static_cast<std::uint32_t>(n_state),
         M::info.id,
@@ -471,6 +656,9 @@ struct Descriptors {
         &create,
         &destroy,
         &update,
+        &create_ex,
+        nullptr,
+        has_init_state ? &init_state : nullptr,
     };
 };
 
@@ -478,6 +666,7 @@ template <class... Models>
 struct Library {
     static constexpr std::array<const talus_model *, sizeof...(Models)> models = {
         &Descriptors<Models>::model...};
+    static constexpr bool needs_1_1 = (Descriptors<Models>::needs_1_1 || ...);
 
     static std::int32_t entry(const char *name, const char *version, const talus_host_info *host,
                               const talus_library **out, talus_error *err) noexcept {
@@ -487,22 +676,45 @@ struct Library {
                                           static_cast<std::uint32_t>(sizeof...(Models)),
                                           name,
                                           version,
-                                          models.data()};
+                                          models.data(),
+                                          nullptr};
         if (!host || !out) return fail(err, -1, "entry: null host or library pointer");
+        const std::string versions =
+            std::string("library '") + name + "' was built for Talus material ABI " +
+            std::to_string(TALUS_ABI_VERSION_MAJOR) + "." +
+            std::to_string(TALUS_ABI_VERSION_MINOR) + ", the host speaks ABI " +
+            std::to_string(host->abi_major) + "." + std::to_string(host->abi_minor);
         if (host->abi_major != TALUS_ABI_VERSION_MAJOR)
+            return fail(err, -1, versions + ": rebuild it against this host's SDK");
+        if (needs_1_1 && host->abi_minor < 1)
             return fail(err, -1,
-                        std::string("library '") + name + "' was built for Talus material ABI " +
-                            std::to_string(TALUS_ABI_VERSION_MAJOR) + "." +
-                            std::to_string(TALUS_ABI_VERSION_MINOR) + ", the host speaks ABI " +
-                            std::to_string(host->abi_major) + "." +
-                            std::to_string(host->abi_minor) +
-                            ": rebuild it against this host's SDK");
+                        versions + ", and one of its models needs ABI 1.1 (list or string "
+                                   "parameters, not reentrant, or the increment's rotation): "
+                                   "use a newer host");
+        if (TALUS_HAS_FIELD(talus_host_info, host, log_context)) {
+            host_log.log = host->log;
+            host_log.context = host->log_context;
+        }
         *out = &lib;
         return TALUS_STATUS_OK;
     }
 };
 
 } // namespace detail
+
+inline void log_message(std::int32_t level, std::string_view message) {
+    if (!detail::host_log.log) return;
+    // One line, NUL-terminated: a bounded copy on the stack (no allocation
+    // inside update).
+    char line[512];
+    const std::size_t n = std::min(message.size(), sizeof line - 1);
+    std::memcpy(line, message.data(), n);
+    line[n] = '\0';
+    detail::host_log.log(detail::host_log.context, level, line);
+}
+inline void log_warning(std::string_view message) { log_message(TALUS_LOG_WARNING, message); }
+inline void log_info(std::string_view message) { log_message(TALUS_LOG_INFO, message); }
+
 } // namespace talus::sdk
 
 // How the plugin was compiled, as a string in the library file that `talus
