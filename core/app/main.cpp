@@ -424,15 +424,8 @@ int main(int argc, char **argv) {
                 const auto eq = kv.find('=');
                 if (eq == std::string::npos || eq == 0)
                     throw talus::Error(fmt::format("--param {}: expected KEY=VALUE", kv));
-                try {
-                    std::size_t used = 0;
-                    const double v = std::stod(kv.substr(eq + 1), &used);
-                    if (used != kv.size() - eq - 1) throw std::invalid_argument("trailing text");
-                    check_opt.params.emplace_back(kv.substr(0, eq), v);
-                } catch (const std::exception &) {
-                    throw talus::Error(
-                        fmt::format("--param {}: '{}' is not a number", kv, kv.substr(eq + 1)));
-                }
+                // Parsed by the parameter's type once the model is known.
+                check_opt.params.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
             }
             check_opt.isolate = !no_isolate;
             if (is_yaml_name(check_target))

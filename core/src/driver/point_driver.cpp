@@ -421,9 +421,9 @@ CompareSpec read_compare(const yaml::Node &n) {
 } // namespace
 
 PointCase read_point_case(const yaml::Node &root, PluginRegistry &registry) {
-    constexpr std::array<std::string_view, 10> top = {
-        "talus",  "plugins", "material", "initial_stress", "axis",
-        "stages", "time",    "strain",   "output",         "compare"};
+    constexpr std::array<std::string_view, 11> top = {
+        "talus",  "plugins", "material", "initial_stress",       "axis", "stages", "time",
+        "strain", "output",  "compare",  "characteristic_length"};
     root.allow_keys(top);
     const yaml::Node version = root.require("talus");
     if (version.as_integer() != 1)
@@ -446,6 +446,11 @@ PointCase read_point_case(const yaml::Node &root, PluginRegistry &registry) {
                 "expected 6 stress components [xx, yy, zz, xy, yz, xz] in Pa, got {}", v.size()));
         for (int i = 0; i < 6; ++i)
             pc.initial_stress[i] = v[static_cast<std::size_t>(i)];
+    }
+    if (const yaml::Node h = root.get("characteristic_length"); h.defined()) {
+        pc.characteristic_length = h.as_double();
+        if (!(pc.characteristic_length > 0.0) || !std::isfinite(pc.characteristic_length))
+            h.fail(fmt::format("expected a length > 0 in m, got {}", pc.characteristic_length));
     }
     if (const yaml::Node ax = root.get("axis"); ax.defined()) {
         const std::string a = ax.as_string();
@@ -628,6 +633,18 @@ class Runner {
         s.stress = pc_.initial_stress;
         s.state = pc_.material.initial_state;
         double t = 0.0;
+        // A model with init_state brings the initial stress and state to a
+        // start it accepts, as in the solver (material_abi.h). Without it
+        // the driver starts from the case's values as given.
+        if (model().has_init_state()) {
+            const Call c = call(s, Vec6::Zero(), s.F, 0.0, 0.0, false, Mat3::Identity(), true);
+            if (!c.result.ok())
+                throw Error(fmt::format("{}: error: the initial state: model '{}' (init_state): "
+                                        "{}",
+                                        pc_.file, model().id(), c.result.message));
+            s.stress = c.stress;
+            s.state = c.state;
+        }
         record(t, 0, s);
         for (std::size_t k = 0; k < pc_.stages.size(); ++k) {
             stage_index_ = static_cast<int>(k);
@@ -654,17 +671,24 @@ class Runner {
 
     // One plugin call from `s` with the tensor strain increment de and the
     // end deformation gradient F1.
+    // R: the increment's rotation (talus_batch.rotation); setup: the set-up
+    // call (init_state).
     Call call(const PointState &s, const Vec6 &de, const Mat3 &F1, double t, double dt,
-              bool want_tangent) const {
+              bool want_tangent, const Mat3 &R = Mat3::Identity(), bool setup = false) const {
         return call_with_density(s, de, F1, t, dt, pc_.material.density / F1.determinant(),
-                                 want_tangent);
+                                 want_tangent, R, setup);
     }
     Call call_with_density(const PointState &s, const Vec6 &de, const Mat3 &F1, double t, double dt,
-                           double rho, bool want_tangent = false) const {
+                           double rho, bool want_tangent = false, const Mat3 &R = Mat3::Identity(),
+                           bool setup = false) const {
         Call c;
         c.state.resize(s.state.size());
         const Vec6 g = to_engineering(de);
-        const RowMat3 F0r = s.F, F1r = F1;
+        const RowMat3 F0r = s.F, F1r = F1, Rr = R;
+        // One point: its id is 0; the driver numbers its increments from 1
+        // in the order it computes them (a retried one keeps its number).
+        const std::int64_t id = 0;
+        const double length = pc_.characteristic_length;
         double wave = 0.0;
         Eigen::Matrix<double, 6, 6, Eigen::RowMajor> D;
         talus_batch b{};
@@ -682,7 +706,11 @@ class Runner {
         b.state_end = c.state.empty() ? nullptr : c.state.data();
         b.wave_speed = &wave;
         b.tangent = D.data();
-        c.result = pc_.instance->update(b);
+        b.step = setup ? 0 : static_cast<std::int64_t>(rows_.size());
+        b.point_id = &id;
+        b.characteristic_length = &length;
+        b.rotation = Rr.data();
+        c.result = setup ? pc_.instance->start(b) : pc_.instance->update(b);
         if (want_tangent) {
             // The plugin differentiates by engineering shear; the driver's
             // unknowns are tensor components: columns 3..5 double.
@@ -871,7 +899,7 @@ class Runner {
         if (!model().finite_strain())
             start.stress =
                 sdk::matrix_to_stress(R * sdk::stress_to_matrix(s.stress) * R.transpose());
-        const Call c = call(start, de, F1, t0, dt, false);
+        const Call c = call(start, de, F1, t0, dt, false, R);
         if (c.result.status == TALUS_STATUS_CUT_STEP)
             fail(st, t0,
                  fmt::format("model '{}' asks for a smaller step; a prescribed-F stage "

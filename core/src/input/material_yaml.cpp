@@ -60,8 +60,8 @@ MaterialSpec read_material(const yaml::Node &node, PluginRegistry &registry) {
         case TALUS_PARAM_BOOLEAN: value.scalar = v.as_bool() ? 1.0 : 0.0; break;
         case TALUS_PARAM_REAL_ARRAY:
             if (!v.is_sequence())
-                v.fail(fmt::format("expected a list of {} (e.g. [{:g}, {:g}]) for '{}'",
-                                   p.count_text(), p.typical_value, p.typical_value, p.key));
+                v.fail(fmt::format("expected a list of {} (e.g. [{:g}, {:g}])", p.count_text(),
+                                   p.typical_value, p.typical_value));
             value.reals = v.as_doubles();
             break;
         case TALUS_PARAM_STRING: value.text = v.as_string(); break;

@@ -22,8 +22,9 @@ double det3(const double *F) {
 
 } // namespace
 
-MaterialUpdate::MaterialUpdate(MaterialNames names, int batch_size)
-    : names_(std::move(names)), batch_(static_cast<std::size_t>(std::max(1, batch_size))) {}
+MaterialUpdate::MaterialUpdate(MaterialNames names, int batch_size, double characteristic_length)
+    : names_(std::move(names)), batch_(static_cast<std::size_t>(std::max(1, batch_size))),
+      length_(characteristic_length) {}
 
 void MaterialUpdate::prepare(const std::vector<ParticleSet> &sets) {
     // The thread count may have changed since the last call
@@ -38,6 +39,8 @@ void MaterialUpdate::prepare(const std::vector<ParticleSet> &sets) {
         if (scr.L.size() == 9 * B && scr.state.size() >= ns * B) continue;
         scr.L.assign(9 * B, 0.0);
         scr.F_end.resize(9 * B);
+        scr.rotation.resize(9 * B);
+        scr.length.assign(B, length_);
         scr.de.resize(6 * B);
         scr.rho.resize(B);
         scr.stress.resize(6 * B);
@@ -95,10 +98,19 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
         }
     // Stress and state go to scratch and are committed after the call: the
     // particle's stay the inputs of any retry.
+    // The increment's rotation for a model that rotates tensor state itself
+    // (UMAT's DROT): the Hughes-Winget rotation the host gave the stress.
+    if (s.wants_rotation)
+        for (std::size_t k = 0; k < count; ++k)
+            hughes_winget_rotation(L + L_stride * k, inc.dt, &scr.rotation[9 * k]);
     const std::size_t ns = s.state_size;
-    const Inputs in{&s.stress[6 * begin], ns ? &s.state[ns * begin] : nullptr,
-                    &s.F[9 * begin],      scr.F_end.data(),
-                    scr.de.data(),        scr.rho.data()};
+    const Inputs in{&s.stress[6 * begin],
+                    ns ? &s.state[ns * begin] : nullptr,
+                    &s.F[9 * begin],
+                    scr.F_end.data(),
+                    scr.de.data(),
+                    scr.rho.data(),
+                    s.wants_rotation ? scr.rotation.data() : nullptr};
     const Outputs out{scr.stress.data(), ns ? scr.state.data() : nullptr};
     MaterialFailure failure;
 #ifdef TALUS_BENCH_INLINE_HOOKE
@@ -152,12 +164,17 @@ bool MaterialUpdate::advance(ParticleSet &s, std::size_t set, std::size_t begin,
     b.state_start = ns ? in.state : nullptr;
     b.state_end = ns ? out.state : nullptr;
     b.wave_speed = &s.c[begin];
+    b.step = step;
+    b.point_id = &s.id[begin];
+    b.characteristic_length = scr.length.data();
+    b.rotation = in.rotation;
     // Whom to blame if the plugin crashes (crash_report.hpp).
     const crash::Task task{names_.material[set],
                            names_.group[static_cast<std::size_t>(s.group[begin])], step,
                            s.id[begin], s.id[begin + count - 1]};
     const crash::TaskScope blame(&task);
-    MaterialInstance::Result r = s.instance->update(b);
+    // Step 0 is the set-up call (the plugin's init_state when it has one).
+    MaterialInstance::Result r = step == 0 ? s.instance->start(b) : s.instance->update(b);
     if (r.ok()) return true;
     const long parts =
         r.status == TALUS_STATUS_CUT_STEP ? cut_step::parts(r.cut_factor, fraction) : 0;
@@ -172,6 +189,11 @@ bool MaterialUpdate::advance(ParticleSet &s, std::size_t set, std::size_t begin,
             buf->resize(6 * count);
         for (auto *buf : {&lv.state[0], &lv.state[1]})
             buf->resize(ns * count);
+        if (in.rotation && lv.identity.size() < 9 * count) {
+            lv.identity.assign(9 * count, 0.0);
+            for (std::size_t p = 0; p < count; ++p)
+                lv.identity[9 * p] = lv.identity[9 * p + 4] = lv.identity[9 * p + 8] = 1.0;
+        }
         const double k = static_cast<double>(parts);
         for (std::size_t p = 0; p < count; ++p)
             for (std::size_t c = 0; c < 6; ++c)
@@ -187,6 +209,9 @@ bool MaterialUpdate::advance(ParticleSet &s, std::size_t set, std::size_t begin,
                 }
                 lv.rho[p] = s.rho0 / det3(&lv.F_end[9 * p]);
             }
+            // The start stress was rotated once, before the first part: the
+            // later parts turn by nothing more.
+            if (j > 1 && in.rotation) part.rotation = lv.identity.data();
             part.F_start = lv.F_start.data();
             part.F_end = lv.F_end.data();
             part.de = lv.de.data();

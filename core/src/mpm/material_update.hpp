@@ -66,7 +66,9 @@ struct UpdateFailures {
 
 class MaterialUpdate {
   public:
-    MaterialUpdate(MaterialNames names, int batch_size);
+    // `characteristic_length`: what the plugins see as each point's length
+    // (the grid's cell size; talus_batch.characteristic_length).
+    MaterialUpdate(MaterialNames names, int batch_size, double characteristic_length);
 
     // Points per block (the plugin's batch).
     std::size_t block_size() const { return batch_; }
@@ -102,6 +104,7 @@ class MaterialUpdate {
     // block scratch, or a part of a cut step in scratch.
     struct Inputs {
         const double *stress, *state, *F_start, *F_end, *de, *rho;
+        const double *rotation; // null unless the model wants it
     };
     struct Outputs {
         double *stress, *state;
@@ -110,11 +113,14 @@ class MaterialUpdate {
     // and two output buffers the parts alternate between.
     struct Level {
         std::vector<double> F_start, F_end, de, rho, stress[2], state[2];
+        std::vector<double> identity; // the rotation of every part but the first
     };
     // Per thread, sized once by prepare(): no allocation in a step.
     struct Scratch {
         std::vector<double> L;              // a fused G2P's gradients
         std::vector<double> F_end, de, rho; // the block's kinematics
+        std::vector<double> rotation;       // its increment's rotations, when asked
+        std::vector<double> length;         // the characteristic length, per point
         std::vector<double> stress, state;  // the block's outputs before commit
         std::deque<Level> levels; // grown at the end while deeper levels run: references hold
         long cuts = 0;
@@ -125,6 +131,7 @@ class MaterialUpdate {
                  const Outputs &out, Scratch &scr, MaterialFailure &failure);
     MaterialNames names_;
     std::size_t batch_;
+    double length_;
     std::vector<Scratch> scratch_;
     long cut_steps_ = 0;
 };

@@ -20,6 +20,7 @@ ParticleSet new_set(const Scenario &sc, std::size_t material, ColumnsInUse colum
     s.material = material;
     s.instance = instance;
     s.finite_strain = m.spec.model->finite_strain();
+    s.wants_rotation = m.spec.model->wants_rotation();
     s.state_size = m.spec.state.size;
     s.rho0 = m.spec.density;
     s.dim = sc.dim;

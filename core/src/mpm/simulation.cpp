@@ -96,7 +96,7 @@ Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options)
       grid(sc.dim, sc.origin, sc.size, sc.cell, sc.solver.shape), boundary(sc, grid),
       instances(make_instances(sc)), sets(generate_particles(sc, columns_of(sc.solver), instances)),
       order(grid.geo, sets.size()), loads(sc), domain(domain_of(sc)),
-      materials(names_of(sc, sets), opt.batch_size), variant(variant_of(sc.solver)),
+      materials(names_of(sc, sets), opt.batch_size, sc.cell), variant(variant_of(sc.solver)),
       isa(talus::kernel_isa()), velocity_motion(velocity_motion_of(sc.solver)) {
     for (const GroupSpec &g : sc.groups)
         group_names.push_back(g.name);

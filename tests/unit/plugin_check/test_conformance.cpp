@@ -56,7 +56,7 @@ TEST(Conformance, InProcessModeGivesTheSameVerdict) {
 
 TEST(Conformance, UnknownParameterOverrideIsReported) {
     talus::CheckOptions opt;
-    opt.params = {{"youngs_modulus", 2e8}, {"poison_ratio", 0.2}};
+    opt.params = {{"youngs_modulus", "2e8"}, {"poison_ratio", "0.2"}};
     const auto rep =
         talus::check_plugin(talus::test::plugin_dir() / "talus_linear_elastic.so", opt);
     const auto *c = find(rep, "create");
@@ -64,6 +64,44 @@ TEST(Conformance, UnknownParameterOverrideIsReported) {
     EXPECT_FALSE(c->passed);
     EXPECT_TRUE(contains(c->detail, "--param poison_ratio: the model has no such parameter"))
         << c->detail;
+    // A value that is not of the parameter's type, or out of its bounds.
+    opt.params = {{"youngs_modulus", "2e8x"}};
+    const auto rep1 =
+        talus::check_plugin(talus::test::plugin_dir() / "talus_linear_elastic.so", opt);
+    c = find(rep1, "create");
+    ASSERT_NE(c, nullptr);
+    EXPECT_TRUE(contains(c->detail, "--param youngs_modulus=2e8x: '2e8x' is not a number"))
+        << c->detail;
+    opt.params = {{"poisson_ratio", "0.5"}};
+    const auto rep2 =
+        talus::check_plugin(talus::test::plugin_dir() / "talus_linear_elastic.so", opt);
+    c = find(rep2, "create");
+    ASSERT_NE(c, nullptr);
+    EXPECT_TRUE(contains(c->detail, "expected -1 < poisson_ratio < 0.5")) << c->detail;
+}
+
+// A 1.1 plugin with list, string and integer parameters, an instance state
+// layout, init_state and the batch context passes the checks at its typical
+// values, and takes list and string overrides.
+TEST(Conformance, AbiOnePointOnePluginPasses) {
+    talus::CheckOptions opt;
+    opt.isolate = false;
+    const auto rep = talus::check_plugin(fixture("abi11_c"), opt);
+    EXPECT_TRUE(rep.passed()) << dump(rep);
+    const auto *c = find(rep, "create");
+    ASSERT_NE(c, nullptr);
+    EXPECT_TRUE(contains(c->detail, "weights=[1], label=\"sandy\", n_extra=2")) << c->detail;
+    opt.params = {{"weights", "1,2.5"}, {"label", "clay"}};
+    const auto rep3 = talus::check_plugin(fixture("abi11_c"), opt);
+    c = find(rep3, "create");
+    ASSERT_NE(c, nullptr);
+    EXPECT_TRUE(contains(c->detail, "weights=[1, 2.5], label=\"clay\"")) << c->detail;
+    opt.params = {{"weights", "1,2,3,4,5"}};
+    const auto rep4 = talus::check_plugin(fixture("abi11_c"), opt);
+    c = find(rep4, "create");
+    ASSERT_NE(c, nullptr);
+    EXPECT_FALSE(c->passed);
+    EXPECT_TRUE(contains(c->detail, "expected 1 to 4 values, got 5")) << c->detail;
 }
 
 struct BrokenCase {

@@ -57,6 +57,43 @@ struct Out {
     RowMat6 D = RowMat6::Zero();
 };
 
+// A --param value as the parameter's type: a number, a comma-separated
+// list of numbers, or text. Checked against the parameter's bounds.
+bool parse_param(const ParamInfo &p, const std::string &text, ParamValue &out, std::string &why) {
+    auto number = [&](const std::string &t, double &v) {
+        try {
+            std::size_t used = 0;
+            v = std::stod(t, &used);
+            return used == t.size();
+        } catch (const std::exception &) {
+            return false;
+        }
+    };
+    out = ParamValue{};
+    if (p.type == TALUS_PARAM_STRING) {
+        out.text = text;
+    } else if (p.type == TALUS_PARAM_REAL_ARRAY) {
+        std::size_t at = 0;
+        while (!text.empty() && at <= text.size()) {
+            const std::size_t comma = std::min(text.find(',', at), text.size());
+            double v = 0.0;
+            if (!number(text.substr(at, comma - at), v)) {
+                why = fmt::format("'{}' is not a comma-separated list of numbers", text);
+                return false;
+            }
+            out.reals.push_back(v);
+            at = comma + 1;
+        }
+    } else if (p.type == TALUS_PARAM_BOOLEAN && (text == "true" || text == "false")) {
+        out.scalar = text == "true" ? 1.0 : 0.0;
+    } else if (!number(text, out.scalar)) {
+        why = fmt::format("'{}' is not a number", text);
+        return false;
+    }
+    why = check_parameter(p, out);
+    return why.empty();
+}
+
 // F at the end of an increment de from F0: the pure stretch exp(de) applied
 // on the left, consistent with the tangent's definition in the ABI.
 RowMat3 advance_F(const RowMat3 &F0, const Vec6 &de) {
@@ -68,15 +105,21 @@ RowMat3 advance_F(const RowMat3 &F0, const Vec6 &de) {
 MaterialInstance::Result run_batch(const MaterialInstance &mi, const std::vector<Pt> &pts,
                                    std::size_t begin, std::size_t n, std::uint32_t flags,
                                    std::vector<Out> &outs, bool in_place = false) {
-    const std::size_t ns = mi.model().state_size();
+    const std::size_t ns = mi.state_size();
     std::vector<double> de(6 * n), F0(9 * n), F1(9 * n), rho(n), s0(6 * n), q0(ns * n), s1(6 * n),
-        q1(ns * n), c(n), D(36 * n);
+        q1(ns * n), c(n), D(36 * n), length(n, 1.0), R(9 * n, 0.0);
+    // The 1.1 context as a host gives it: each point's id is its index in
+    // the check's list of points (so a point keeps its id in a batch and
+    // alone), a unit length, and no rotation (the increments are stretches).
+    std::vector<std::int64_t> ids(n);
     for (std::size_t i = 0; i < n; ++i) {
         const Pt &p = pts[begin + i];
         std::copy_n(p.de.data(), 6, &de[6 * i]);
         std::copy_n(p.F0.data(), 9, &F0[9 * i]);
         std::copy_n(p.F1.data(), 9, &F1[9 * i]);
         rho[i] = p.rho;
+        ids[i] = static_cast<std::int64_t>(begin + i);
+        R[9 * i] = R[9 * i + 4] = R[9 * i + 8] = 1.0;
         std::copy_n(p.s0.data(), 6, &s0[6 * i]);
         std::copy(p.q0.begin(), p.q0.end(), q0.begin() + static_cast<std::ptrdiff_t>(ns * i));
     }
@@ -95,6 +138,10 @@ MaterialInstance::Result run_batch(const MaterialInstance &mi, const std::vector
     b.state_end = ns ? (in_place ? q0.data() : q1.data()) : nullptr;
     b.wave_speed = c.data();
     b.tangent = D.data();
+    b.step = 1;
+    b.point_id = ids.data();
+    b.characteristic_length = length.data();
+    b.rotation = R.data();
     const MaterialInstance::Result r = mi.update(b);
     if (outs.size() < begin + n) outs.resize(begin + n);
     for (std::size_t i = 0; i < n; ++i) {
@@ -183,12 +230,28 @@ class ModelChecks {
 
     bool create() {
         start("create");
-        std::vector<double> values;
+        std::vector<ParamValue> values;
         for (const ParamInfo &p : model_.params()) {
-            double v = p.typical_value;
+            ParamValue v = p.typical_param();
+            bool given = false;
             for (const auto &kv : opt_.params)
-                if (kv.first == p.key) v = kv.second;
-            values.push_back(v);
+                if (kv.first == p.key) {
+                    given = true;
+                    std::string why;
+                    if (!parse_param(p, kv.second, v, why)) {
+                        report("create", false,
+                               fmt::format("--param {}={}: {}", kv.first, kv.second, why));
+                        return false;
+                    }
+                }
+            if (!given && p.type == TALUS_PARAM_STRING && p.required() && !p.has_typical_string) {
+                report("create", false,
+                       fmt::format("parameter '{}' ({}) has no example value: give one with "
+                                   "--param {}=VALUE",
+                                   p.key, p.doc, p.key));
+                return false;
+            }
+            values.push_back(std::move(v));
         }
         for (const auto &kv : opt_.params) {
             bool known = false;
@@ -208,7 +271,8 @@ class ModelChecks {
         }
         std::string desc;
         for (std::size_t i = 0; i < values.size(); ++i)
-            desc += fmt::format("{}{}={:g}", i ? ", " : "", model_.params()[i].key, values[i]);
+            desc += fmt::format("{}{}={}", i ? ", " : "", model_.params()[i].key,
+                                model_.params()[i].value_text(values[i]));
         report("create", true, desc.empty() ? "no parameters" : desc);
         return true;
     }
@@ -235,7 +299,7 @@ class ModelChecks {
         };
         Pt virgin;
         virgin.rho = opt_.density;
-        virgin.q0 = model_.initial_state();
+        virgin.q0 = instance_->state().initial();
         // The virgin state gets a compression direction: from zero stress, a
         // model without cohesion can only be probed by loading it.
         states_.push_back(virgin);

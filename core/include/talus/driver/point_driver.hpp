@@ -127,6 +127,10 @@ struct PointCase {
     std::unique_ptr<MaterialInstance> instance;
     PointVec6 initial_stress = PointVec6::Zero();
     int axis = 2; // the axial direction of the geotechnical output (z)
+    // The length the plugin is told (talus_batch.characteristic_length:
+    // regularised softening, UMAT's CELENT): the element the point stands
+    // for.
+    double characteristic_length = 1.0;
     std::vector<Stage> stages;
     long output_every = 1;
     std::optional<CompareSpec> compare;

@@ -45,6 +45,7 @@ struct ParticleSet {
     std::size_t material = 0; // index into Scenario::materials
     const MaterialInstance *instance = nullptr;
     bool finite_strain = false;
+    bool wants_rotation = false; // the model is given each increment's rotation
     std::uint32_t state_size = 0;
     double rho0 = 0.0;
     std::size_t n = 0;

@@ -51,4 +51,24 @@ namespace talus {
     sig[5] = R(0, 2);
 }
 
+// The rotation matrix of the same increment, row-major: what
+// hughes_winget applies to the stress as Q s Q^T (for a model that rotates
+// tensor-valued state itself: talus_batch.rotation, UMAT's DROT).
+inline void hughes_winget_rotation(const double *L, double dt, double *Q) {
+    const double a1 = 0.25 * dt * (L[7] - L[5]);
+    const double a2 = 0.25 * dt * (L[2] - L[6]);
+    const double a3 = 0.25 * dt * (L[3] - L[1]);
+    const double aa = a1 * a1 + a2 * a2 + a3 * a3;
+    const double c = 2.0 / (1.0 + aa);
+    Q[0] = 1.0 + c * (a1 * a1 - aa);
+    Q[1] = c * (-a3 + a1 * a2);
+    Q[2] = c * (a2 + a1 * a3);
+    Q[3] = c * (a3 + a2 * a1);
+    Q[4] = 1.0 + c * (a2 * a2 - aa);
+    Q[5] = c * (-a1 + a2 * a3);
+    Q[6] = c * (-a2 + a3 * a1);
+    Q[7] = c * (a1 + a3 * a2);
+    Q[8] = 1.0 + c * (a3 * a3 - aa);
+}
+
 } // namespace talus

@@ -18,8 +18,9 @@ struct CheckOptions {
     // their states with; 1e-4 is small for any solid yet far above round-off.
     double strain_scale = 1e-4;
     double density = 2000.0; // kg/m^3, the host-owned density of the test point
-    // Parameter values replacing the plugin's typical values, by key.
-    std::vector<std::pair<std::string, double>> params;
+    // Parameter values replacing the plugin's typical values, by key, as
+    // text: a number, a comma-separated list (list parameters) or a string.
+    std::vector<std::pair<std::string, std::string>> params;
     // Run the checks in a child process so that a crashing plugin is
     // reported as a failed check instead of taking the checker down.
     bool isolate = true;
