@@ -6,6 +6,7 @@
 #include <talus/error.hpp>
 #include <talus/input/scenario_yaml.hpp>
 #include <talus/io/output_file.hpp>
+#include <talus/io/provenance.hpp>
 #include <talus/material/crash_report.hpp>
 #include <talus/material/plugin_loader.hpp>
 #include <talus/plugin_check/conformance.hpp>
@@ -51,17 +52,32 @@ void print_model(std::ostream &out, const Model &m) {
                        m.finite_strain() ? "finite strain (uses F, owns its objectivity)"
                                          : "strain increment (host rotates stress objectively)",
                        m.has_tangent() ? "consistent tangent provided" : "not provided");
+    out << fmt::format("  qualified id: {}; set-up call: {}; threads: {}{}\n", m.qualified_id(),
+                       m.has_init_state() ? "init_state" : "update with dt = 0",
+                       m.reentrant() ? "reentrant"
+                                     : "NOT reentrant (called from one thread at a time)",
+                       m.wants_rotation() ? "; is given each increment's rotation" : "");
     out << "  parameters (YAML keys of the material, beside model and density):\n";
     if (m.params().empty()) out << "    none\n";
     for (const ParamInfo &p : m.params()) {
         out << fmt::format("    {:<20} [{}] {}, {}\n", p.key, p.unit, p.type_name(),
                            p.required() ? "required"
-                                        : fmt::format("default {:g}", p.default_value));
-        out << fmt::format("      bounds: {}; example: {:g}\n", p.bounds_text(), p.typical_value);
+                                        : "default " + p.value_text(p.default_param()));
+        if (p.type == TALUS_PARAM_STRING)
+            out << fmt::format("      example: {}\n", p.value_text(p.typical_param()));
+        else if (p.type == TALUS_PARAM_REAL_ARRAY)
+            out << fmt::format("      {}, each {}; example: {}\n", p.count_text(), p.bounds_text(),
+                               p.value_text(p.typical_param()));
+        else
+            out << fmt::format("      bounds: {}; example: {}\n", p.bounds_text(),
+                               p.value_text(p.typical_param()));
         out << wrap(p.doc, 6);
     }
     out << "  state variables:\n";
-    if (m.state().empty()) out << "    none\n";
+    if (m.instance_state())
+        out << "    set per material from its parameters (the instance's layout)\n";
+    else if (m.state().empty())
+        out << "    none\n";
     for (const StateInfo &s : m.state()) {
         std::string flags;
         if (s.output()) flags += ", written to output";
@@ -333,9 +349,19 @@ int main(int argc, char **argv) {
                 return 0;
             }
             std::vector<talus::PointRow> rows;
+            // What made the rows: beside the CSV file, or on stderr when the
+            // CSV goes to stdout (which stays plain CSV).
+            const talus::Provenance prov{"point", case_file, {{"material", &pc.material}}};
+            auto write_provenance = [&](const std::string &csv_file) {
+                if (csv_file.empty())
+                    std::cerr << talus::provenance_comments(prov);
+                else
+                    talus::write_file_atomically(csv_file + ".provenance.json",
+                                                 talus::provenance_json(prov));
+            };
             auto csv_text = [&] {
                 std::ostringstream csv;
-                talus::write_point_csv(csv, pc.instance->model(), pc.axis, rows);
+                talus::write_point_csv(csv, *pc.instance, pc.axis, rows);
                 return csv.str();
             };
             try {
@@ -346,6 +372,7 @@ int main(int argc, char **argv) {
                 if (csv_out.empty() || rows.empty()) throw;
                 const std::string partial = csv_out + ".failed.csv";
                 talus::write_file_atomically(partial, csv_text());
+                write_provenance(partial);
                 throw talus::Error(fmt::format("{}\n(the {} rows computed until then are in {}; "
                                                "{} was not written)",
                                                e.what(), rows.size(), partial, csv_out));
@@ -355,6 +382,7 @@ int main(int argc, char **argv) {
                 std::cout << csv;
             else
                 talus::write_file_atomically(csv_out, csv);
+            write_provenance(csv_out);
             if (!plot_png.empty()) {
                 std::filesystem::path source = csv_out;
                 std::filesystem::path tmp;

@@ -18,7 +18,7 @@ std::string compare_point_rows(const PointCase &pc, const std::vector<PointRow> 
     if (rx < 0)
         throw Error(fmt::format("{}: error: compare: the reference file {} has no column '{}'",
                                 cs.where, cs.file, cs.ref_x));
-    const Model &model = pc.instance->model();
+    const MaterialInstance &model = *pc.instance;
     std::vector<PointRow> rows;
     for (const PointRow &r : all_rows)
         if (cs.stage.empty() ||

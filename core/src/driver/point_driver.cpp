@@ -514,10 +514,10 @@ PointCase read_point_case(const yaml::Node &root, PluginRegistry &registry) {
         probe.stress.setZero();
         probe.state = pc.material.initial_state;
         for (const auto &col : pc.compare->columns)
-            if (!point_quantity(probe, pc.instance->model(), pc.axis, col.ours))
+            if (!point_quantity(probe, *pc.instance, pc.axis, col.ours))
                 cmp.get("columns").get(col.ours).fail(
                     fmt::format("'{}' is not an output column of this case", col.ours));
-        if (!point_quantity(probe, pc.instance->model(), pc.axis, pc.compare->x))
+        if (!point_quantity(probe, *pc.instance, pc.axis, pc.compare->x))
             cmp.get("x").fail(fmt::format("'{}' is not an output column", pc.compare->x));
         if (!pc.compare->stage.empty() &&
             std::none_of(pc.stages.begin(), pc.stages.end(),
@@ -537,7 +537,7 @@ PointCase read_point_case(const yaml::Node &root, PluginRegistry &registry) {
             probe.strain.setZero();
             probe.stress.setZero();
             probe.state = pc.material.initial_state;
-            if (!point_quantity(probe, pc.instance->model(), pc.axis, st.until->variable) &&
+            if (!point_quantity(probe, *pc.instance, pc.axis, st.until->variable) &&
                 st.until->variable != "stage_time")
                 throw Error(fmt::format("{}: error: stage '{}': until '{}' names an unknown "
                                         "quantity '{}'; use an output column (p, q, eps_a, eps_v, "
@@ -562,7 +562,7 @@ double shear_strain_invariant(const Vec6 &e) {
 
 } // namespace
 
-std::optional<double> point_quantity(const PointRow &r, const Model &model, int axis,
+std::optional<double> point_quantity(const PointRow &r, const MaterialInstance &material, int axis,
                                      const std::string &name) {
     for (std::size_t c = 0; c < 6; ++c) {
         if (name == fmt::format("eps_{}", kVoigtNames[c])) return r.strain[static_cast<int>(c)];
@@ -585,7 +585,7 @@ std::optional<double> point_quantity(const PointRow &r, const Model &model, int 
         return p != 0.0 ? sdk::von_mises(r.stress) / p : 0.0;
     }
     std::size_t k = 0;
-    for (const StateInfo &s : model.state()) {
+    for (const StateInfo &s : material.state().vars) {
         for (std::uint32_t j = 0; j < s.size; ++j, ++k) {
             const std::string col = s.size == 1 ? s.name : fmt::format("{}_{}", s.name, j);
             if (name == col && k < r.state.size()) return r.state[k];
@@ -986,9 +986,10 @@ class Runner {
         auto met = [&](const PointState &x, double time) {
             if (!st.until) return false;
             const PointRow row{time, number, x.eps, x.stress, x.state};
-            const double q = st.until->variable == "stage_time"
-                                 ? time - t
-                                 : *point_quantity(row, model(), pc_.axis, st.until->variable);
+            const double q =
+                st.until->variable == "stage_time"
+                    ? time - t
+                    : *point_quantity(row, *pc_.instance, pc_.axis, st.until->variable);
             const std::string &op = st.until->op;
             const double th = st.until->threshold;
             return op == ">=" ? q >= th : op == "<=" ? q <= th : op == ">" ? q > th : q < th;
@@ -1029,7 +1030,7 @@ class Runner {
             const PointRow row{t + st.duration, number, s.eps, s.stress, s.state};
             const auto q = st.until->variable == "stage_time"
                                ? std::optional<double>(st.duration)
-                               : point_quantity(row, model(), pc_.axis, st.until->variable);
+                               : point_quantity(row, *pc_.instance, pc_.axis, st.until->variable);
             fail(st, t + st.duration,
                  fmt::format("the stage ended (duration {:g}) without reaching '{}' ({} = {:.9g}); "
                              "lengthen the stage or change the condition",
@@ -1054,7 +1055,7 @@ std::vector<PointRow> run_point_case(const PointCase &pc) {
 
 // -------------------------------------------------------------- output --
 
-void write_point_csv(std::ostream &out, const Model &model, int axis,
+void write_point_csv(std::ostream &out, const MaterialInstance &material, int axis,
                      const std::vector<PointRow> &rows) {
     out << "time,stage";
     for (auto c : kVoigtNames)
@@ -1062,7 +1063,7 @@ void write_point_csv(std::ostream &out, const Model &model, int axis,
     for (auto c : kVoigtNames)
         out << ",sig_" << c;
     out << ",p,q,eps_v,eps_q,eps_a,sig_a,sig_r,q_a";
-    for (const StateInfo &s : model.state()) {
+    for (const StateInfo &s : material.state().vars) {
         if (s.size == 1)
             out << ',' << s.name;
         else
@@ -1078,7 +1079,7 @@ void write_point_csv(std::ostream &out, const Model &model, int axis,
         for (int c = 0; c < 6; ++c)
             out << fmt::format(",{:.17g}", r.stress[c]);
         for (const char *q : {"p", "q", "eps_v", "eps_q", "eps_a", "sig_a", "sig_r", "q_a"})
-            out << fmt::format(",{:.17g}", *point_quantity(r, model, axis, q));
+            out << fmt::format(",{:.17g}", *point_quantity(r, material, axis, q));
         for (double v : r.state)
             out << fmt::format(",{:.17g}", v);
         out << '\n';

@@ -3,6 +3,7 @@
 #include <talus/driver/point_driver.hpp>
 #include <talus/input/yaml_input.hpp>
 #include <talus/io/output_file.hpp>
+#include <talus/io/provenance.hpp>
 #include <talus/io/vtk_output.hpp>
 #include <talus/material/crash_report.hpp>
 #include <talus/sdk/voigt.hpp>
@@ -208,7 +209,7 @@ namespace {
 bool is_own_file(const fs::path &p) {
     const std::string name = p.filename().string();
     for (const char *f : {"diagnostics.csv", "probes.csv", "particles.pvd", "failed_call.yaml",
-                          "final_particles.csv"})
+                          "final_particles.csv", "provenance.json"})
         if (name == f) return true;
     return (name.rfind("particles_", 0) == 0 || name.rfind("failure_", 0) == 0) &&
            p.extension() == ".vtu";
@@ -237,6 +238,11 @@ class RunOutput {
                     if (v.output() &&
                         std::find(fields_.begin(), fields_.end(), v.name) == fields_.end())
                         fields_.push_back(v.name);
+        // First: what made this run, before any result exists.
+        Provenance prov{"run", sc.file, {}};
+        for (const auto &m : sc.materials)
+            prov.materials.push_back({m.name, &m.spec});
+        write_file_atomically(dir / "provenance.json", provenance_json(prov));
         diag_ = OutputFile(dir / "diagnostics.csv");
         diag_ << "step,time,dt,mass,momentum_x,momentum_y,momentum_z,kinetic_energy,stress_work,"
                  "angular_momentum_x,angular_momentum_y,angular_momentum_z,particles,removed,"

@@ -299,8 +299,9 @@ PluginLibrary::Build read_build_info(const fs::path &file) {
     return b;
 }
 
-// SHA-256 of a file in hex; empty when it cannot be read.
-std::string sha256_of(const fs::path &file) {
+} // namespace
+
+std::string sha256_file(const fs::path &file) {
     std::ifstream in(file, std::ios::binary);
     if (!in) return {};
     std::unique_ptr<EVP_MD_CTX, decltype(&EVP_MD_CTX_free)> ctx(EVP_MD_CTX_new(), &EVP_MD_CTX_free);
@@ -320,6 +321,8 @@ std::string sha256_of(const fs::path &file) {
         fmt::format_to(std::back_inserter(hex), "{:02x}", md[i]);
     return hex;
 }
+
+namespace {
 
 std::mutex g_log_sink_mutex;
 PluginLogSink g_log_sink;
@@ -404,7 +407,7 @@ std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
     lib->handle_ = handle;
     lib->path_ = file;
     lib->build_ = read_build_info(file);
-    lib->hash_ = sha256_of(file);
+    lib->hash_ = sha256_file(file);
 
     dlerror();
     void *sym = dlsym(handle, TALUS_MATERIAL_ENTRY_SYMBOL);

@@ -145,7 +145,7 @@ TEST(PointDriver, CsvHeaderAndInvariants) {
                                                "c.yaml");
     const talus::PointCase pc = talus::read_point_case(root, reg);
     std::ostringstream csv;
-    talus::write_point_csv(csv, pc.instance->model(), pc.axis, talus::run_point_case(pc));
+    talus::write_point_csv(csv, *pc.instance, pc.axis, talus::run_point_case(pc));
     std::string header, first;
     std::istringstream in(csv.str());
     std::getline(in, header);
@@ -251,7 +251,7 @@ std::string mc_material(double phi, double c, double psi, double E, double nu) {
 }
 
 double q_of(const talus::PointRow &r, const talus::PointCase &pc, const char *name) {
-    return *talus::point_quantity(r, pc.instance->model(), pc.axis, name);
+    return *talus::point_quantity(r, *pc.instance, pc.axis, name);
 }
 
 } // namespace

@@ -166,12 +166,12 @@ std::vector<PointRow> run_point_case(const PointCase &pc);
 // CSV: time, stage, eps_*, sig_* (tension positive), then the geotechnical
 // quantities (compression positive): p, q, eps_v, eps_q, eps_a, sig_a,
 // sig_r, then one column per state component.
-void write_point_csv(std::ostream &out, const Model &model, int axis,
+void write_point_csv(std::ostream &out, const MaterialInstance &material, int axis,
                      const std::vector<PointRow> &rows);
 
 // The named quantity of a row (a CSV column name), or nullopt.
-std::optional<double> point_quantity(const PointRow &row, const Model &model, int axis,
-                                     const std::string &name);
+std::optional<double> point_quantity(const PointRow &row, const MaterialInstance &material,
+                                     int axis, const std::string &name);
 
 // A driver case that replays the failed plugin call of a run (written by
 // `talus run` next to its output when a plugin fails at a particle).

@@ -299,6 +299,10 @@ std::string check_parameter(const ParamInfo &p, double value);
 // The same for a value of any type (an array: its count and each value).
 std::string check_parameter(const ParamInfo &p, const ParamValue &value);
 
+// SHA-256 of a file's content in hex (what sha256sum prints); empty when
+// the file cannot be read.
+std::string sha256_file(const std::filesystem::path &file);
+
 // The host's own identification passed to plugins ("talus 0.1.0").
 const char *host_name();
 
