@@ -6,6 +6,7 @@
 
 #include <chrono>
 #include <ctime>
+#include <filesystem>
 
 #ifndef TALUS_VERSION_STRING
 #define TALUS_VERSION_STRING "0.0.0"
@@ -66,6 +67,16 @@ std::string json_value(const ParamInfo &p, const ParamValue &v) {
 
 } // namespace
 
+namespace {
+// The input as an absolute path: the record must stay meaningful when read
+// from another working directory.
+std::string absolute_input(const Provenance &p) {
+    std::error_code ec;
+    const std::filesystem::path abs = std::filesystem::absolute(p.input_file, ec);
+    return ec ? p.input_file : abs.lexically_normal().string();
+}
+} // namespace
+
 std::string provenance_json(const Provenance &p) {
     std::string j = "{\n";
     j += fmt::format("  \"talus_version\": {},\n", json_string(TALUS_VERSION_STRING));
@@ -73,8 +84,8 @@ std::string provenance_json(const Provenance &p) {
                      TALUS_ABI_VERSION_MINOR);
     j += fmt::format("  \"command\": {},\n", json_string(p.command));
     j += fmt::format("  \"created_utc\": {},\n", json_string(utc_now()));
-    j += fmt::format("  \"input\": {{\"file\": {}, \"sha256\": {}}},\n", json_string(p.input_file),
-                     json_string(file_sha256(p.input_file)));
+    j += fmt::format("  \"input\": {{\"file\": {}, \"sha256\": {}}},\n",
+                     json_string(absolute_input(p)), json_string(file_sha256(p.input_file)));
     j += "  \"materials\": [";
     for (std::size_t i = 0; i < p.materials.size(); ++i) {
         const MaterialSpec &s = *p.materials[i].spec;
@@ -103,7 +114,7 @@ std::string provenance_json(const Provenance &p) {
 std::string provenance_comments(const Provenance &p) {
     std::string c;
     c += fmt::format("# talus {} (material ABI {}.{}), talus {} {}, {}\n", TALUS_VERSION_STRING,
-                     TALUS_ABI_VERSION_MAJOR, TALUS_ABI_VERSION_MINOR, p.command, p.input_file,
+                     TALUS_ABI_VERSION_MAJOR, TALUS_ABI_VERSION_MINOR, p.command, absolute_input(p),
                      utc_now());
     c += fmt::format("# input sha256 {}\n", file_sha256(p.input_file));
     for (const ProvenanceMaterial &pm : p.materials) {

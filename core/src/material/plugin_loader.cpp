@@ -854,7 +854,7 @@ const Model &PluginRegistry::find_model(const std::string &id) {
     auto offering = [&] {
         std::vector<const Model *> found;
         for (const auto &lib : libraries_)
-            if (lib_name.empty() || lib->name() == lib_name)
+            if (slash == std::string::npos || lib->name() == lib_name)
                 if (const Model *m = lib->find(model_id)) found.push_back(m);
         return found;
     };

@@ -226,6 +226,8 @@ TEST(Loader, RepeatedModelIdNeedsTheQualifiedId) {
     const talus::Model &m = explicit_reg.find_model("duplicate/good_c_elastic");
     EXPECT_EQ(m.library().path(), std::filesystem::weakly_canonical(duplicate));
     EXPECT_EQ(m.qualified_id(), "duplicate/good_c_elastic");
+    // A qualified id names its library exactly: an empty one is no library.
+    EXPECT_THROW(explicit_reg.find_model("/good_c_elastic"), talus::Error);
     // Found by scanning a directory that holds both.
     talus::PluginRegistry scan_reg({talus::test::fixture_dir() / "scan"});
     try {
