@@ -275,6 +275,24 @@ struct MohrCoulomb {
         if (out.tangent) *out.tangent = spectral_tangent(sp, r.stress, P_total);
     }
 
+    // The set-up call (ABI 1.1): the user's initial stress is returned to
+    // the surface by update's projection (a zero increment returns the
+    // projected stress, see the head of this file), and a stress that moved
+    // is reported through the host's log, naming the particle and how far
+    // it moved, rather than passing silently.
+    void init_state(const talus::sdk::PointIn &in, talus::sdk::PointOut &out) const {
+        update(in, out);
+        const double moved = (out.stress - in.stress).cwiseAbs().maxCoeff();
+        if (moved > 0.0) {
+            char msg[200];
+            std::snprintf(msg, sizeof msg,
+                          "point %lld: the initial stress lies outside the yield surface; "
+                          "returned to it (largest component change %.4g Pa)",
+                          static_cast<long long>(in.point_id), moved);
+            talus::sdk::log_warning(msg);
+        }
+    }
+
     double wave_speed(const talus::sdk::PointIn &in, const talus::sdk::PointOut &) const {
         return std::sqrt((el_.lambda + 2.0 * el_.shear) / in.density);
     }

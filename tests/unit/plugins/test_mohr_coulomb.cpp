@@ -57,8 +57,9 @@ struct Out {
     talus::MaterialInstance::Result res;
 };
 
+// `setup`: the set-up call (init_state) instead of an update.
 Out call(const talus::MaterialInstance &mi, const Vec6 &s0, const Vec6 &de,
-         std::vector<double> q0 = {0.0, 0.0, 0.0}) {
+         std::vector<double> q0 = {0.0, 0.0, 0.0}, bool setup = false) {
     Out o;
     o.state.assign(q0.size(), 0.0);
     const RowMat3 I = RowMat3::Identity();
@@ -78,7 +79,9 @@ Out call(const talus::MaterialInstance &mi, const Vec6 &s0, const Vec6 &de,
     b.state_end = o.state.data();
     b.wave_speed = &c;
     b.tangent = o.D.data();
-    o.res = mi.update(b);
+    const std::int64_t id = 41;
+    b.point_id = &id;
+    o.res = setup ? mi.start(b) : mi.update(b);
     return o;
 }
 
@@ -630,4 +633,39 @@ TEST(MohrCoulomb, StartStressOutsideTheSurfaceIsProjectedWithoutPlasticStrain) {
     const Out again = call(*mi, o.stress, Vec6::Zero(), {0.0, 0.0, 0.0});
     EXPECT_LT((again.stress - o.stress).cwiseAbs().maxCoeff(), 1e-9 * 4e5); // as above
     EXPECT_EQ(static_cast<int>(again.state[2]), talus_mc::kElastic);
+}
+
+// The set-up call (ABI 1.1) returns an initial stress outside the surface to
+// it, exactly as a zero increment does, and says so in the host's log; an
+// admissible one passes unchanged and unreported.
+TEST(MohrCoulomb, InitialStressOutsideTheSurfaceIsReturnedAndReported) {
+    talus::PluginRegistry reg;
+    const auto mi = make(model(reg), {{"youngs_modulus", 1e7},
+                                      {"poisson_ratio", 0.3},
+                                      {"friction_angle", 30},
+                                      {"dilation_angle", 0},
+                                      {"cohesion", 0}});
+    EXPECT_TRUE(mi->model().has_init_state());
+    std::vector<std::string> log;
+    const auto previous =
+        talus::set_plugin_log_sink([&](const std::string &l) { log.push_back(l); });
+    Vec6 s0;
+    s0 << -1e5, -4e5, -1e5, 5e4, 0, 0; // q far beyond the c = 0 cone
+    const Out o = call(*mi, s0, Vec6::Zero(), {0.0, 0.0, 0.0}, true);
+    ASSERT_TRUE(o.res.ok()) << o.res.message;
+    const Out zero = call(*mi, s0, Vec6::Zero(), {0.0, 0.0, 0.0});
+    EXPECT_EQ(o.stress, zero.stress); // the same projection, to the bit
+    EXPECT_EQ(o.state[1], 0.0);       // no plastic strain
+    ASSERT_EQ(log.size(), 1u);
+    EXPECT_TRUE(talus::test::contains(log[0],
+                                      "warning: plugin talus_mohr_coulomb: point 41: the initial "
+                                      "stress lies outside the yield surface; returned to it"))
+        << log[0];
+    Vec6 inside;
+    inside << -1e5, -1.2e5, -1e5, 0, 0, 0;
+    const Out ok = call(*mi, inside, Vec6::Zero(), {0.0, 0.0, 0.0}, true);
+    ASSERT_TRUE(ok.res.ok());
+    EXPECT_EQ(ok.stress, inside);
+    EXPECT_EQ(log.size(), 1u);
+    talus::set_plugin_log_sink(previous);
 }
