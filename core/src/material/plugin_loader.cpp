@@ -79,7 +79,9 @@ ParamValue ParamInfo::default_param() const {
 ParamValue ParamInfo::typical_param() const {
     ParamValue v;
     v.scalar = typical_value;
-    if (type == TALUS_PARAM_REAL_ARRAY)
+    // A required list: max(min_count, 1) copies of typical_value; an
+    // optional one: its default, the empty list (material_abi.h).
+    if (type == TALUS_PARAM_REAL_ARRAY && required())
         v.reals.assign(std::max<std::uint32_t>(min_count, 1), typical_value);
     v.text = has_typical_string ? typical_string : default_string;
     return v;
