@@ -11,7 +11,9 @@
 #include <talus/material/plugin_loader.hpp>
 #include <talus/plugin_check/conformance.hpp>
 
+#include "model_markdown.hpp"
 #include "particle_plot.hpp"
+#include "plugin_new.hpp"
 #include "point_plot.hpp"
 #include <talus/driver/run.hpp>
 #include <talus/input/yaml_input.hpp>
@@ -202,10 +204,25 @@ int main(int argc, char **argv) {
     plugin->require_subcommand(1);
     auto *info =
         plugin->add_subcommand("info", "Describe a plugin library, or the model with this id");
-    std::string info_target;
+    std::string info_target, markdown_dir;
+    bool markdown = false;
     info->add_option("target", info_target, "Library path or name, or a model id")
         ->required()
         ->type_name("LIB_OR_MODEL");
+    info->add_flag("--markdown", markdown,
+                   "Print each model's reference page in Markdown (docs/materials/)");
+    info->add_option("--output-dir", markdown_dir,
+                     "With --markdown: write one MODEL_ID.md per model into this folder")
+        ->type_name("DIR");
+    auto *new_plugin =
+        plugin->add_subcommand("new", "Write a ready-to-build plugin project (CMake, source, "
+                                      "driver case, tests)");
+    std::string new_name, new_dir = ".";
+    new_plugin->add_option("name", new_name, "Model id and project name (lower_snake_case)")
+        ->required()
+        ->type_name("NAME");
+    new_plugin->add_option("--dir", new_dir, "Folder to create the project in (default: .)")
+        ->type_name("DIR");
     auto *list = plugin->add_subcommand("list", "List every model found on the plugin search path");
     auto *check = plugin->add_subcommand("check", "Run the conformance suite on a plugin library");
     std::string check_target;
@@ -422,6 +439,26 @@ int main(int argc, char **argv) {
                 } catch (const talus::Error &) {
                 }
             }
+            if (markdown) {
+                std::vector<const talus::Model *> models;
+                if (!library.empty())
+                    for (const talus::Model &m : registry.load(library.string()).models())
+                        models.push_back(&m);
+                else
+                    models.push_back(&registry.find_model(info_target));
+                for (const talus::Model *m : models) {
+                    const std::string page = talus::model_markdown(*m);
+                    if (markdown_dir.empty()) {
+                        std::cout << page;
+                    } else {
+                        const auto file = std::filesystem::path(markdown_dir) / (m->id() + ".md");
+                        talus::write_file_atomically(file, page);
+                        std::cerr << fmt::format("talus: wrote {}\n", file.string());
+                    }
+                }
+                return 0;
+            }
+            if (!markdown_dir.empty()) throw talus::Error("--output-dir goes with --markdown");
             if (!library.empty()) {
                 print_library(std::cout, registry.load(library.string()));
                 return 0;
@@ -431,6 +468,15 @@ int main(int argc, char **argv) {
                                      m.library().version(), m.library().path().string(),
                                      m.library().build_text());
             print_model(std::cout, m);
+            return 0;
+        }
+        if (new_plugin->parsed()) {
+            const std::filesystem::path dir = talus::write_plugin_project(new_name, new_dir);
+            std::cout << fmt::format(
+                "talus: wrote the plugin project {0}\n"
+                "  cmake -S {0} -B {0}/build -DCMAKE_PREFIX_PATH=<where Talus is installed>\n"
+                "  cmake --build {0}/build && ctest --test-dir {0}/build\n",
+                dir.string());
             return 0;
         }
         if (list->parsed()) {

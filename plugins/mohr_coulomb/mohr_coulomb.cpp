@@ -83,8 +83,9 @@ struct MohrCoulomb {
                "the apex (Clausen, Damkilde & Andersen, Comput. Struct. 85 (2007) 1795-1807), "
                "with its consistent tangent. Optional linear softening of phi, psi and c "
                "between two values of the accumulated plastic deviatoric strain "
-               "sqrt(2/3 e_p:e_p), solved implicitly. A start stress outside the surface is "
-               "projected onto it before the increment, without plastic strain. Wave speed: "
+               "sqrt(2/3 e_p:e_p), solved implicitly. An initial stress outside the surface "
+               "is projected onto it at set-up, without plastic strain, and each point moved "
+               "is reported as a warning. Wave speed: "
                "the elastic P-wave speed sqrt((K + 4G/3) / rho).",
         .finite_strain = false,
         .tangent = true,

@@ -410,7 +410,19 @@ std::int32_t update(const talus_instance *i, const talus_batch *b, talus_error *
                   kFromAbaqus[static_cast<std::size_t>(c)]] = ddsdde[6 * c + r];
         if (want_t) std::memcpy(b->tangent + 36 * p, D, sizeof D);
         if (want_c) {
-            const double M = inst->p_wave_modulus > 0.0 ? inst->p_wave_modulus : p_wave_modulus(D);
+            double M = inst->p_wave_modulus;
+            if (!(M > 0.0)) {
+                // The 13 eigenvalue problems cost more than most UMATs: a
+                // tangent equal to the thread's last one (an elastic UMAT,
+                // or points in the same elastic state) reuses its modulus.
+                thread_local double last_D[36] = {};
+                thread_local double last_M = -1.0;
+                if (last_M < 0.0 || std::memcmp(last_D, D, sizeof D) != 0) {
+                    last_M = p_wave_modulus(D);
+                    std::memcpy(last_D, D, sizeof D);
+                }
+                M = last_M;
+            }
             b->wave_speed[p] = std::sqrt(M / b->density[p]);
         }
     }

@@ -770,6 +770,17 @@ std::vector<fs::path> PluginRegistry::search_dirs() const {
             }
         }
     }
+    // The user's own plugins: $XDG_DATA_HOME/talus/plugins, by default
+    // ~/.local/share/talus/plugins (the XDG base directory convention), so
+    // that a plugin built once is found by every run without settings.
+    if (use_env_) {
+        const char *xdg = std::getenv("XDG_DATA_HOME");
+        const char *home = std::getenv("HOME");
+        if (xdg && *xdg)
+            dirs.push_back(fs::path(xdg) / "talus" / "plugins");
+        else if (home && *home)
+            dirs.push_back(fs::path(home) / ".local" / "share" / "talus" / "plugins");
+    }
     // The shipped plugins, found relative to the running executable so that
     // both a build tree (bin/ beside plugins/) and an installed, possibly
     // moved, tree (bin/ beside lib/talus/plugins/) work without settings.

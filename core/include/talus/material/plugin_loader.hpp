@@ -4,7 +4,9 @@
 //   1. an explicit path (anything containing '/' or ending in ".so");
 //   2. the directories given with --plugin-path, in order;
 //   3. the directories in the TALUS_PLUGIN_PATH environment variable;
-//   4. the shipped plugins beside the running executable: <bin>/../plugins
+//   4. the user's plugin folder, $XDG_DATA_HOME/talus/plugins (by default
+//      ~/.local/share/talus/plugins);
+//   5. the shipped plugins beside the running executable: <bin>/../plugins
 //      (a build tree), then <bin>/../lib/talus/plugins (an installation).
 // A name N matches the files N, talus_N.so and N.so. A model is named by
 // its qualified id "library/model" (never ambiguous) or by its model id
