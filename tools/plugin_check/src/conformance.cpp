@@ -6,6 +6,7 @@
 #include <talus/sdk/voigt.hpp>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <fmt/format.h>
 
 #include <cfenv>
@@ -13,6 +14,7 @@
 #include <csignal>
 #include <cstring>
 #include <functional>
+#include <numbers>
 #include <ostream>
 #include <random>
 #include <thread>
@@ -203,6 +205,8 @@ class ModelChecks {
         wave_speed();
         nan_input();
         threads();
+        determinism();
+        objectivity();
         instance_.reset();
         const unsigned fp_after = fp_control_word();
         report("fp environment", fp_after == fp_before_,
@@ -222,9 +226,15 @@ class ModelChecks {
     std::vector<Pt> states_;       // loaded states (start of the checks' increments)
     std::vector<Vec6> directions_; // loading direction that produced each state
     double stress_scale_ = 1.0;    // rho c^2 * strain_scale: stress of one increment
+    std::string param_text_;       // the parameter values the checks use
 
+    // A failure names the parameter values it happened with: a model can be
+    // right for its typical values and wrong for the user's.
     void report(const std::string &name, bool ok, const std::string &detail) {
-        sink_.emit(CheckOutcome{model_.id(), name, ok, detail});
+        sink_.emit(CheckOutcome{model_.id(), name, ok,
+                                ok || param_text_.empty() || name == "create"
+                                    ? detail
+                                    : detail + " [parameters: " + param_text_ + "]"});
     }
     void start(const std::string &name) { sink_.starting(model_.id(), name); }
 
@@ -273,6 +283,7 @@ class ModelChecks {
         for (std::size_t i = 0; i < values.size(); ++i)
             desc += fmt::format("{}{}={}", i ? ", " : "", model_.params()[i].key,
                                 model_.params()[i].value_text(values[i]));
+        param_text_ = desc;
         report("create", true, desc.empty() ? "no parameters" : desc);
         return true;
     }
@@ -304,9 +315,15 @@ class ModelChecks {
         // model without cohesion can only be probed by loading it.
         states_.push_back(virgin);
         directions_.push_back(dirs[0]);
+        // Whether each path left the model's linear branch: its state
+        // changed, or its stress is not ten times the first increment's
+        // change (a plastic, damaged or hyperelastic response). Checks run
+        // only on the linear branch test only that branch: said below.
+        int state_changed = 0, nonlinear = 0;
         for (std::size_t d = 0; d < dirs.size(); ++d) {
             Pt p = virgin;
             const Vec6 de = opt_.strain_scale * dirs[d] / dirs[d].norm();
+            Vec6 first = Vec6::Zero();
             for (int k = 0; k < 10; ++k) {
                 p.de = de;
                 p.F1 = advance_F(p.F0, de);
@@ -318,6 +335,7 @@ class ModelChecks {
                            fmt::format("path {} failed at increment {}: {}", d, k, r.message));
                     return false;
                 }
+                if (k == 0) first = o[0].s1 - p.s0;
                 p.s0 = o[0].s1;
                 p.q0 = o[0].q1;
                 p.F0 = p.F1;
@@ -325,14 +343,32 @@ class ModelChecks {
                     stress_scale_ = opt_.density * o[0].c * o[0].c * opt_.strain_scale;
             }
             p.de.setZero();
+            bool changed = false;
+            for (std::size_t k = 0; k < p.q0.size(); ++k)
+                changed |= p.q0[k] != virgin.q0[k];
+            state_changed += changed;
+            // 1e-6 of the path's stress: far above the round-off of ten
+            // sums, far below any material nonlinearity worth the name.
+            const Vec6 linear = virgin.s0 + 10.0 * first;
+            nonlinear += (p.s0 - linear).cwiseAbs().maxCoeff() >
+                         1e-6 * std::max(linear.cwiseAbs().maxCoeff(), 1e-300);
             states_.push_back(p);
             directions_.push_back(dirs[d]);
         }
+        const int n_paths = static_cast<int>(dirs.size());
         report("loading paths", true,
                fmt::format("{} states from 4 generic and 3 axisymmetric paths of 10 increments of "
                            "{:g}; stress scale "
-                           "rho c^2 de = {:.4g}",
-                           states_.size(), opt_.strain_scale, stress_scale_));
+                           "rho c^2 de = {:.4g}; {}",
+                           states_.size(), opt_.strain_scale, stress_scale_,
+                           state_changed + nonlinear == 0
+                               ? "NO path left the linear branch (no state changed, every "
+                                 "response linear): the checks below test the linear branch "
+                                 "only; raise --strain-scale or give --param values that reach "
+                                 "yield"
+                               : fmt::format("the nonlinear branch was reached: {} of {} paths "
+                                             "changed the state, {} of {} responded nonlinearly",
+                                             state_changed, n_paths, nonlinear, n_paths)));
         return true;
     }
 
@@ -547,6 +583,77 @@ class ModelChecks {
         report("nan input", true,
                "NaN strain increment, NaN stress and infinite increment each give "
                "TALUS_STATUS_FAILED");
+    }
+
+    // The same batch three times gives the same outputs to the bit: a model
+    // whose result depends on a call counter, a clock or uninitialised
+    // memory breaks every bit-identical rerun and restart.
+    void determinism() {
+        start("determinism");
+        const std::vector<Pt> pts = points(false, 4);
+        const std::uint32_t flags = full_flags();
+        std::vector<Out> first, again;
+        auto r = run_batch(*instance_, pts, 0, pts.size(), flags, first);
+        if (!r.ok()) return report("determinism", false, r.message);
+        for (int rep = 0; rep < 2; ++rep) {
+            again.clear();
+            r = run_batch(*instance_, pts, 0, pts.size(), flags, again);
+            if (!r.ok()) return report("determinism", false, r.message);
+            for (std::size_t i = 0; i < pts.size(); ++i) {
+                const bool same = first[i].s1 == again[i].s1 && first[i].q1 == again[i].q1 &&
+                                  first[i].c == again[i].c &&
+                                  (!model_.has_tangent() || first[i].D == again[i].D);
+                if (!same)
+                    return report("determinism", false,
+                                  fmt::format("point {} gave different outputs for the same "
+                                              "inputs on call {} (sigma_xx {:.17g} vs {:.17g})",
+                                              i, rep + 2, first[i].s1[0], again[i].s1[0]));
+            }
+        }
+        report(
+            "determinism", true,
+            fmt::format("{} points, 3 calls with the same inputs: identical outputs", pts.size()));
+    }
+
+    // A finite-strain model computes stress from F and owns its
+    // objectivity: a rigid rotation R superposed on every loaded state
+    // (F -> R F) must give R sigma R^T. Strain-increment models are skipped:
+    // the host rotates their stress (the zero increment check covers that
+    // they return it unchanged).
+    void objectivity() {
+        start("objectivity");
+        if (!model_.finite_strain())
+            return report("objectivity", true,
+                          "strain-increment model: the host rotates the stress; skipped");
+        const Mat3 R = Eigen::AngleAxisd(70.0 * std::numbers::pi / 180.0,
+                                         Eigen::Vector3d(1, 2, 3).normalized())
+                           .toRotationMatrix();
+        double worst = 0.0;
+        std::size_t worst_state = 0;
+        for (std::size_t k = 0; k < states_.size(); ++k) {
+            Pt fixed = states_[k], turned = states_[k];
+            fixed.de.setZero();
+            fixed.F1 = fixed.F0;
+            turned.de.setZero();
+            turned.F1 = RowMat3(R * Mat3(turned.F0));
+            std::vector<Out> a, b;
+            auto r = run_batch(*instance_, {fixed}, 0, 1, TALUS_BATCH_WANT_WAVE_SPEED, a);
+            if (!r.ok()) return report("objectivity", false, r.message);
+            r = run_batch(*instance_, {turned}, 0, 1, TALUS_BATCH_WANT_WAVE_SPEED, b);
+            if (!r.ok()) return report("objectivity", false, "after the rotation: " + r.message);
+            const Mat3 expected = R * sdk::stress_to_matrix(a[0].s1) * R.transpose();
+            const double scale = std::max(a[0].s1.cwiseAbs().maxCoeff(), stress_scale_);
+            const double d =
+                (sdk::matrix_to_stress(expected) - b[0].s1).cwiseAbs().maxCoeff() / scale;
+            if (d > worst) worst = d, worst_state = k;
+        }
+        // Rotating a stress costs a few ulps of its largest component.
+        report("objectivity", worst <= 1e-10,
+               fmt::format("a rigid rotation of 70 deg about [1, 2, 3] superposed on {} loaded "
+                           "states: largest difference from R sigma R^T {:.3g} of the stress "
+                           "(limit 1e-10){}",
+                           states_.size(), worst,
+                           worst > 1e-10 ? fmt::format(", at state {}", worst_state) : ""));
     }
 
     void threads() {
