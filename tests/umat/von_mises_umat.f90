@@ -6,6 +6,11 @@
 ! hardening modulus H (d sigma_y / d eps_p). STATEV(1) = equivalent
 ! plastic strain, STATEV(2:7) = plastic strain (11, 22, 33, 12, 13, 23,
 ! engineering shears). Radial return (Simo & Hughes 1998, box 3.2).
+! With NSTATV >= 12 it also records what the host passed, so a test can see
+! every argument arrived in its place: STATEV(8) = CELENT, (9) = KINC,
+! (10) = NOEL, (11) = DTIME, (12) = DROT(2,1). With NPROPS >= 5 and
+! PROPS(5) > 0, an increment whose plastic multiplier exceeds PROPS(5) is
+! refused with PNEWDT = 0.5 (asking for a smaller step).
 subroutine umat(stress, statev, ddsdde, sse, spd, scd, rpl, ddsddt, drplde, drpldt, &
                 stran, dstran, time, dtime, temp, dtemp, predef, dpred, cmname, ndi, nshr, &
                 ntens, nstatv, props, nprops, coords, drot, pnewdt, celent, dfgrd0, dfgrd1, &
@@ -28,6 +33,13 @@ subroutine umat(stress, statev, ddsdde, sse, spd, scd, rpl, ddsddt, drplde, drpl
     return
   end if
   e = props(1); anu = props(2); sy0 = props(3); h = props(4)
+  if (nstatv >= 12) then
+    statev(8) = celent
+    statev(9) = dble(kinc)
+    statev(10) = dble(noel)
+    statev(11) = dtime
+    statev(12) = drot(2, 1)
+  end if
   g = e / (2.d0 * (1.d0 + anu))
   alam = e * anu / ((1.d0 + anu) * (1.d0 - 2.d0 * anu))
   bulk = alam + 2.d0 * g / 3.d0
@@ -55,6 +67,12 @@ subroutine umat(stress, statev, ddsdde, sse, spd, scd, rpl, ddsddt, drplde, drpl
   if (q <= sy) return
   ! Radial return: dgam = (q - sy) / (3 G + H), exact for linear hardening.
   dgam = (q - sy) / (3.d0 * g + h)
+  if (nprops >= 5) then
+    if (props(5) > 0.d0 .and. dgam > props(5)) then
+      pnewdt = 0.5d0
+      return
+    end if
+  end if
   n = 1.5d0 * s / q
   factor = 1.d0 - 3.d0 * g * dgam / q
   stress(1:3) = p + factor * s(1:3)

@@ -15,6 +15,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <string>
 
 namespace {
@@ -211,4 +212,87 @@ TEST(UmatAdapter, ElasticUmatMatchesLinearElasticInAScenario) {
             ASSERT_NEAR(pa.stress[6 * p + c], pb.stress[6 * p + c], 1e-9 * smax)
                 << "particle " << p;
     }
+}
+
+// Every argument in its place: the J2 UMAT records CELENT, KINC, NOEL, DTIME
+// and DROT(2,1) in its state variables 8..12. In a rigid rotation stage of
+// 30 deg about z in 10 increments, each increment's rotation is 3 deg:
+// DROT(2,1) = sin(3 deg).
+TEST(UmatAdapter, EveryArgumentArrivesInItsPlace) {
+    const std::string yaml =
+        "talus: 1\ncharacteristic_length: 0.37\nmaterial:\n  model: umat\n  density: 2000\n"
+        "  library: '" +
+        umat("von_mises_umat") +
+        "'\n  props: [2.0e7, 0.25, 4.0e4, 2.0e6]\n  nstatv: 12\n"
+        "stages:\n  - {name: load, preset: isotropic, pressure: 1.0e4, increments: 4}\n"
+        "  - {name: turn, rotation: {axis: [0, 0, 1], angle: 30}, increments: 10, duration: "
+        "2.0}\n";
+    talus::PluginRegistry reg({}, false);
+    const auto rows = run_case(yaml, reg);
+    ASSERT_EQ(rows.size(), 15u);
+    for (std::size_t i = 1; i < rows.size(); ++i) {
+        const auto &q = rows[i].state;
+        EXPECT_EQ(q[7], 0.37) << "row " << i;                        // CELENT
+        EXPECT_EQ(q[8], static_cast<double>(i)) << "row " << i;      // KINC: the increment
+        EXPECT_EQ(q[9], 1.0) << "row " << i;                         // NOEL: point id 0, + 1
+        EXPECT_DOUBLE_EQ(q[10], i <= 4 ? 0.25 : 0.2) << "row " << i; // DTIME: 1/4, 2/10
+        // DROT(2,1): identity while loading, 3 deg increments while turning
+        // (the driver's polar decomposition: round-off of a few ulps).
+        EXPECT_NEAR(q[11], i <= 4 ? 0.0 : std::sin(3.0 * std::numbers::pi / 180.0), 1e-14)
+            << "row " << i;
+    }
+}
+
+// PNEWDT < 1 is a cut-step request: the adapter returns it with the UMAT's
+// factor, and the driver, retrying in parts, still lands on the closed form
+// of simple shear (the J2 return is exact whatever the increment).
+TEST(UmatAdapter, PnewdtBecomesACutStep) {
+    const double E = 2.0e7, nu = 0.25, sy = 4.0e4, H = 2.0e6;
+    const double G = E / (2.0 * (1.0 + nu));
+    // The UMAT refuses increments whose plastic multiplier exceeds 1e-4.
+    const std::string yaml =
+        "talus: 1\nmaterial:\n  model: umat\n  density: 2000\n  library: '" +
+        umat("von_mises_umat") +
+        "'\n  props: [2.0e7, 0.25, 4.0e4, 2.0e6, 1.0e-4]\n  nstatv: 7\n"
+        "stages:\n  - {name: shear, preset: simple_shear, shear_strain: 0.01, constant: volume, "
+        "increments: 5}\n";
+    talus::PluginRegistry reg({}, false);
+    const auto root = talus::yaml::load_string(yaml, "case.yaml");
+    const talus::PointCase pc = talus::read_point_case(root, reg);
+
+    // One call straight through the adapter: the whole first increment.
+    std::vector<double> q0 = pc.instance->state().initial(), q1(q0.size());
+    const double de[6] = {0, 0, 0, 0, 0, 0.004}, s0[6] = {};
+    double s1[6], c = 0.0, rho = 2000.0, length = 1.0;
+    const double F[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    const std::int64_t id = 0;
+    talus_batch b{};
+    b.flags = TALUS_BATCH_WANT_WAVE_SPEED;
+    b.n_points = 1;
+    b.dt = 0.2;
+    b.strain_increment = de;
+    b.F_start = F;
+    b.F_end = F;
+    b.density = &rho;
+    b.stress_start = s0;
+    b.stress_end = s1;
+    b.state_start = q0.data();
+    b.state_end = q1.data();
+    b.wave_speed = &c;
+    b.step = 1;
+    b.point_id = &id;
+    b.characteristic_length = &length;
+    b.rotation = F;
+    const auto r = pc.instance->update(b);
+    EXPECT_EQ(r.status, TALUS_STATUS_CUT_STEP);
+    EXPECT_EQ(r.cut_factor, 0.5);
+    EXPECT_TRUE(talus::test::contains(r.message, "the UMAT set PNEWDT = 0.5")) << r.message;
+
+    // The driver retries in parts and ends on the closed form.
+    const auto rows = talus::run_point_case(pc);
+    ASSERT_EQ(rows.size(), 6u);
+    const double gamma = 0.01;
+    const double gp = (G * gamma - sy / std::sqrt(3.0)) / (G + H / 3.0);
+    EXPECT_NEAR(rows.back().stress[5], G * (gamma - gp), 1e-9 * sy); // as in the closed-form test
+    EXPECT_NEAR(rows.back().state[0], gp / std::sqrt(3.0), 1e-12);
 }
