@@ -11,6 +11,7 @@
 #include <talus/input/yaml_input.hpp>
 #include <talus/plugin_check/conformance.hpp>
 
+#include <Eigen/Geometry>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -85,6 +86,26 @@ TEST(UmatAdapter, ElasticUmatMatchesLinearElasticInTheDriver) {
                     << "row " << i;
         }
     }
+    // Through the rotation stage STRAN turns with the material, as Abaqus
+    // rotates it with DROT: after 50 deg about [1, 2, 3] it is R eps R^T.
+    std::size_t before = 0, after = 0;
+    for (std::size_t i = 0; i < a.size(); ++i) {
+        if (a[i].stage == 2) before = i;
+        if (a[i].stage == 3) after = i;
+    }
+    auto tensor = [](const std::vector<double> &q) { // engineering -> tensor
+        Eigen::Matrix3d e;
+        e << q[0], 0.5 * q[3], 0.5 * q[5], 0.5 * q[3], q[1], 0.5 * q[4], 0.5 * q[5], 0.5 * q[4],
+            q[2];
+        return e;
+    };
+    const Eigen::Matrix3d R =
+        Eigen::AngleAxisd(50.0 * std::numbers::pi / 180.0, Eigen::Vector3d(1, 2, 3).normalized())
+            .toRotationMatrix();
+    const Eigen::Matrix3d expected = R * tensor(a[before].state) * R.transpose();
+    // Strains of 1e-3 turned through 25 increments: round-off ~1e-18.
+    EXPECT_LT((tensor(a[after].state) - expected).cwiseAbs().maxCoeff(), 1e-15);
+    EXPECT_GT((tensor(a[before].state) - expected).cwiseAbs().maxCoeff(), 1e-5); // it did turn
 }
 
 // J2 plasticity with linear hardening in monotonic simple shear (strain
