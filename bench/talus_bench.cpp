@@ -218,6 +218,16 @@ int main(int argc, char **argv) {
         {"2d_block_64k", 2, block_yaml(2, 128, 128, 0, 2, 0.002)},
         {"2d_block_4m", 2, block_yaml(2, 1000, 1000, 0, 2, 0.002)},
     };
+    // A misspelt --case would otherwise measure nothing and exit 0.
+    if (!only.empty() && only != "memory_bandwidth" &&
+        std::none_of(cases.begin(), cases.end(), [&](const Case &c) { return c.name == only; })) {
+        std::fprintf(stderr, "talus_bench: no case '%s'; the cases are: memory_bandwidth",
+                     only.c_str());
+        for (const Case &c : cases)
+            std::fprintf(stderr, ", %s", c.name.c_str());
+        std::fprintf(stderr, "\n");
+        return 2;
+    }
     try {
         if (only.empty() || only == "memory_bandwidth")
             for (const int threads : thread_counts)
