@@ -24,7 +24,8 @@ const std::vector<std::pair<std::string_view, Keys>> &schema() {
     static const std::vector<std::pair<std::string_view, Keys>> s = {
         {"",
          {"talus", "dimension", "plugins", "grid", "materials", "groups", "boundaries", "gravity",
-          "nodal_velocities", "particle_velocities", "loads", "solver", "time", "output"}},
+          "damping", "nodal_velocities", "particle_velocities", "loads", "solver", "time",
+          "output"}},
         {"grid", {"origin", "size", "cell"}},
         {"materials.*", {"model", "density", "initial_state"}},
         {"groups.*",
@@ -39,6 +40,7 @@ const std::vector<std::pair<std::string_view, Keys>> &schema() {
         {"boundaries", {"x-", "x+", "y-", "y+", "z-", "z+"}},
         {"boundaries.*", {"friction"}},
         {"gravity", {"value", "ramp"}},
+        {"damping", {"type", "coefficient"}},
         {"nodal_velocities[]", {"box", "velocity"}},
         {"nodal_velocities[].box", {"min", "max"}},
         {"nodal_velocities[].velocity", {"x", "y", "z"}},
@@ -382,6 +384,23 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
         } else {
             s.gravity = vec(g, s.dim, "m/s^2");
         }
+    }
+
+    if (const yaml::Node d = root.get("damping"); d.defined()) {
+        allow(d, "damping");
+        s.damping.kind = choose<DampingKind>(
+            d.require("type"), {{"local", DampingKind::local}, {"viscous", DampingKind::viscous}});
+        const yaml::Node c = d.require("coefficient");
+        s.damping.coefficient = c.as_double();
+        if (s.damping.kind == DampingKind::local &&
+            !(s.damping.coefficient >= 0.0 && s.damping.coefficient < 1.0))
+            c.fail(fmt::format("expected 0 <= coefficient < 1 for local damping (the fraction of "
+                               "each unbalanced force removed), got {}",
+                               s.damping.coefficient));
+        if (s.damping.kind == DampingKind::viscous &&
+            !(s.damping.coefficient >= 0.0 && std::isfinite(s.damping.coefficient)))
+            c.fail(fmt::format("expected a coefficient >= 0 (1/s) for viscous damping, got {}",
+                               s.damping.coefficient));
     }
 
     if (const yaml::Node nv = root.get("nodal_velocities"); nv.defined()) {

@@ -2,14 +2,16 @@
 
 #include "parallel.hpp"
 
+#include <cmath>
+
 namespace talus {
 
 using node::kRecord;
 
 namespace {
 
-template <bool Update>
-void velocities(Grid &grid, const Boundary &bc, double t, double dt) {
+template <bool Update, DampingKind Damping = DampingKind::none>
+void velocities(Grid &grid, const Boundary &bc, double t, double dt, double alpha = 0.0) {
     double *a = grid.acc.data(), *v = grid.vel.data();
     const int D = grid.geo.dim;
     // v = p / m everywhere and, when updating, v~ = v + dt f / m in the same
@@ -22,9 +24,17 @@ void velocities(Grid &grid, const Boundary &bc, double t, double dt) {
         for (std::size_t d = 0; d < static_cast<std::size_t>(D); ++d) {
             const double v0 = a[kRecord * i + node::kMomentum + d] * inv;
             v[kRecord * i + node::kVelocity + d] = v0;
-            if constexpr (Update)
-                v[kRecord * i + node::kEndVelocity + d] =
-                    v0 + dt * a[kRecord * i + node::kForce + d] * inv;
+            if constexpr (Update) {
+                double &f = a[kRecord * i + node::kForce + d];
+                // Damping changes the force itself, so that the constrained
+                // nodes below and the diagnostics see the damped force.
+                if constexpr (Damping == DampingKind::local)
+                    // Cundall: f - alpha |f| sign(v), component by component.
+                    f -= alpha * std::abs(f) * static_cast<double>((v0 > 0.0) - (v0 < 0.0));
+                else if constexpr (Damping == DampingKind::viscous)
+                    f -= alpha * m * v0;
+                v[kRecord * i + node::kEndVelocity + d] = v0 + dt * f * inv;
+            }
         }
     });
     bc.apply(grid, v, node::kVelocity, a, t);
@@ -45,8 +55,16 @@ void grid_velocity(Grid &grid, const Boundary &bc, double t) {
     velocities<false>(grid, bc, t, 0.0);
 }
 
-void grid_update(Grid &grid, const Boundary &bc, double t, double dt) {
-    velocities<true>(grid, bc, t, dt);
+void grid_update(Grid &grid, const Boundary &bc, double t, double dt, const DampingSpec &damping) {
+    switch (damping.kind) {
+    case DampingKind::local:
+        velocities<true, DampingKind::local>(grid, bc, t, dt, damping.coefficient);
+        break;
+    case DampingKind::viscous:
+        velocities<true, DampingKind::viscous>(grid, bc, t, dt, damping.coefficient);
+        break;
+    default: velocities<true>(grid, bc, t, dt); break;
+    }
 }
 
 void remapped_velocity(Grid &grid, const Boundary &bc, double t_end, bool mean) {

@@ -4,6 +4,8 @@
 #include "boundary.hpp"
 #include "grid.hpp"
 
+#include <talus/mpm/scenario.hpp>
+
 namespace talus {
 
 // v = p / m (eq. 30) with the boundary conditions at t, into
@@ -11,7 +13,10 @@ namespace talus {
 void grid_velocity(Grid &grid, const Boundary &bc, double t);
 // v as above, and v~ = v + dt f / m (eqs. 31-32) with the conditions at
 // t + dt into Grid::vel[node::kEndVelocity].
-void grid_update(Grid &grid, const Boundary &bc, double t, double dt);
+// With `damping`, the nodal force is damped first (DampingSpec), from the
+// velocity v at t.
+void grid_update(Grid &grid, const Boundary &bc, double t, double dt,
+                 const DampingSpec &damping = {});
 // MUSL: the remapped velocity v_R = p_R / m with the conditions at t_end,
 // written over the force slots of Grid::acc (free after the grid update),
 // and with `mean` also (v + v_R) / 2 over the momentum slots (for the

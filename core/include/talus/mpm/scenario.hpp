@@ -146,6 +146,17 @@ struct SolverSpec {
     LeavePolicy leave = LeavePolicy::stop;
 };
 
+// Damping of the nodal motion for quasi-static work (docs/theory.md,
+// "Damping"): local non-viscous damping (Cundall 1987) removes from each
+// nodal force component the fraction `coefficient` of its magnitude,
+// against the node's velocity; mass-proportional viscous damping the force
+// coefficient m v (coefficient in 1/s).
+enum class DampingKind { none, local, viscous };
+struct DampingSpec {
+    DampingKind kind = DampingKind::none;
+    double coefficient = 0.0;
+};
+
 struct OutputSpec {
     double every = 0.0; // s; 0: only the start and the end
     bool vtk = true;
@@ -165,6 +176,7 @@ struct Scenario {
     std::array<FaceCondition, 6> faces; // x-, x+, y-, y+, z-, z+
     Vec3 gravity{0, 0, 0};
     double gravity_ramp = 0.0; // s; gravity grows linearly to full over it
+    DampingSpec damping;
     std::vector<NodalVelocity> nodal_velocities;
     std::vector<ParticleVelocity> particle_velocities;
     std::vector<Load> loads;
