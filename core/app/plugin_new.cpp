@@ -2,21 +2,13 @@
 
 #include <talus/error.hpp>
 #include <talus/io/output_file.hpp>
+#include <talus/text.hpp>
 
 #include <fmt/format.h>
-
-#include <algorithm>
 
 namespace talus {
 
 namespace {
-
-bool snake(const std::string &s) {
-    if (s.empty() || !(s[0] >= 'a' && s[0] <= 'z')) return false;
-    return std::all_of(s.begin(), s.end(), [](char c) {
-        return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_';
-    });
-}
 
 // The template model: isotropic Hooke's law on the strain increment, with
 // one state variable, so that every part of a model is there to edit. Its
@@ -194,7 +186,7 @@ driver case and its reference in `cases/`.
 
 std::filesystem::path write_plugin_project(const std::string &name,
                                            const std::filesystem::path &parent) {
-    if (!snake(name))
+    if (!is_snake_identifier(name))
         throw Error(fmt::format("talus plugin new: '{}' is not a usable name: use "
                                 "lower_snake_case (it becomes the model id and the library "
                                 "talus_{}.so)",

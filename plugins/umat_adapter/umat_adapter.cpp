@@ -433,109 +433,57 @@ std::int32_t update(const talus_instance *i, const talus_batch *b, talus_error *
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-constexpr talus_param_desc string_param(const char *key, const char *doc, std::uint32_t flags,
-                                        const char *default_string, const char *typical) {
-    return talus_param_desc{sizeof(talus_param_desc),
-                            TALUS_PARAM_STRING,
-                            flags,
-                            0,
-                            key,
-                            "-",
-                            doc,
-                            0.0,
-                            -kInf,
-                            kInf,
-                            0.0,
-                            0,
-                            0,
-                            default_string,
-                            typical};
+// One optional parameter: a string (with its default, also the example), or
+// a number or list of numbers (default 0 or empty, within [lo, hi]).
+constexpr talus_param_desc param(std::uint32_t type, const char *key, const char *unit,
+                                 const char *doc, double lo = -kInf, double hi = kInf,
+                                 const char *default_string = nullptr) {
+    return talus_param_desc{
+        sizeof(talus_param_desc), type,          0, 0, key, unit, doc, 0.0, lo, hi, 0.0, 0, 0,
+        default_string,           default_string};
+}
+constexpr talus_param_desc text(const char *key, const char *doc, const char *default_string) {
+    return param(TALUS_PARAM_STRING, key, "-", doc, -kInf, kInf, default_string);
+}
+constexpr talus_param_desc required(talus_param_desc p) {
+    p.flags |= TALUS_PARAM_REQUIRED;
+    return p;
 }
 
-constexpr talus_param_desc p_library = string_param(
-    "library",
-    "The shared library holding the compiled UMAT (e.g. gfortran -shared -fPIC umat.f -o "
-    "umat.so); a relative path is relative to the input file's folder.",
-    TALUS_PARAM_REQUIRED, nullptr, nullptr);
-constexpr talus_param_desc p_entry = string_param(
-    "entry", "The UMAT's symbol in the library: 'umat_' for gfortran's SUBROUTINE UMAT.", 0,
-    "umat_", "umat_");
-constexpr talus_param_desc p_convention = string_param(
-    "calling_convention",
-    "'fortran': every argument by reference and CMNAME's hidden length appended; 'c': the same "
-    "without the hidden length.",
-    0, "fortran", "fortran");
-constexpr talus_param_desc p_props = {sizeof(talus_param_desc),
-                                      TALUS_PARAM_REAL_ARRAY,
-                                      0,
-                                      0,
-                                      "props",
-                                      "-",
-                                      "PROPS: the UMAT's material constants, in its own order and "
-                                      "units.",
-                                      0.0,
-                                      -kInf,
-                                      kInf,
-                                      0.0,
-                                      0,
-                                      0,
-                                      nullptr,
-                                      nullptr};
-constexpr talus_param_desc p_nstatv = {sizeof(talus_param_desc),
-                                       TALUS_PARAM_INTEGER,
-                                       0,
-                                       0,
-                                       "nstatv",
-                                       "-",
-                                       "NSTATV: the number of state variables (STATEV) per point.",
-                                       0.0,
-                                       0.0,
-                                       10000.0,
-                                       0.0,
-                                       0,
-                                       0,
-                                       nullptr,
-                                       nullptr};
-constexpr talus_param_desc p_names = string_param(
-    "state_names",
-    "Names of the NSTATV state variables, comma-separated, lower_snake_case (default statev_1, "
-    "statev_2, ...).",
-    0, "", "");
-constexpr talus_param_desc p_depvar = {sizeof(talus_param_desc),
-                                       TALUS_PARAM_REAL_ARRAY,
-                                       0,
-                                       0,
-                                       "depvar",
-                                       "-",
-                                       "Initial values of the NSTATV state variables (default "
-                                       "0), as Abaqus' *DEPVAR with SDVINI would set them.",
-                                       0.0,
-                                       -kInf,
-                                       kInf,
-                                       0.0,
-                                       0,
-                                       0,
-                                       nullptr,
-                                       nullptr};
-constexpr talus_param_desc p_cmname = string_param(
-    "cmname", "CMNAME as the UMAT sees it (default: the material's name, upper case).", 0, "", "");
-constexpr talus_param_desc p_pwave = {
-    sizeof(talus_param_desc),
-    TALUS_PARAM_REAL,
-    0,
-    0,
-    "p_wave_modulus",
-    "Pa",
-    "rho c^2 for the time step: 0 takes the largest acoustic-tensor eigenvalue of DDSDDE over 13 "
-    "directions; give the elastic P-wave modulus for a UMAT whose DDSDDE softens.",
-    0.0,
-    0.0,
-    kInf,
-    0.0,
-    0,
-    0,
-    nullptr,
-    nullptr};
+constexpr talus_param_desc p_library =
+    required(text("library",
+                  "The shared library holding the compiled UMAT (e.g. gfortran -shared -fPIC "
+                  "umat.f -o umat.so); a relative path is relative to the input file's folder.",
+                  nullptr));
+constexpr talus_param_desc p_entry = text(
+    "entry", "The UMAT's symbol in the library: 'umat_' for gfortran's SUBROUTINE UMAT.", "umat_");
+constexpr talus_param_desc p_convention =
+    text("calling_convention",
+         "'fortran': every argument by reference and CMNAME's hidden length appended; 'c': the "
+         "same without the hidden length.",
+         "fortran");
+constexpr talus_param_desc p_props =
+    param(TALUS_PARAM_REAL_ARRAY, "props", "-",
+          "PROPS: the UMAT's material constants, in its own order and units.");
+constexpr talus_param_desc p_nstatv =
+    param(TALUS_PARAM_INTEGER, "nstatv", "-",
+          "NSTATV: the number of state variables (STATEV) per point.", 0.0, 10000.0);
+constexpr talus_param_desc p_names =
+    text("state_names",
+         "Names of the NSTATV state variables, comma-separated, lower_snake_case (default "
+         "statev_1, statev_2, ...).",
+         "");
+constexpr talus_param_desc p_depvar =
+    param(TALUS_PARAM_REAL_ARRAY, "depvar", "-",
+          "Initial values of the NSTATV state variables (default 0), as Abaqus' *DEPVAR with "
+          "SDVINI would set them.");
+constexpr talus_param_desc p_cmname =
+    text("cmname", "CMNAME as the UMAT sees it (default: the material's name, upper case).", "");
+constexpr talus_param_desc p_pwave =
+    param(TALUS_PARAM_REAL, "p_wave_modulus", "Pa",
+          "rho c^2 for the time step: 0 takes the largest acoustic-tensor eigenvalue of DDSDDE "
+          "over 13 directions; give the elastic P-wave modulus for a UMAT whose DDSDDE softens.",
+          0.0, kInf);
 constexpr const talus_param_desc *params[kParams] = {&p_library, &p_entry,  &p_convention,
                                                      &p_props,   &p_nstatv, &p_names,
                                                      &p_depvar,  &p_cmname, &p_pwave};

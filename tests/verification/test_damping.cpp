@@ -84,5 +84,9 @@ TEST(Damping, ViscousDampingBringsAColumnToItsGeostaticStress) {
 // fails without the damping it tests.
 TEST(Damping, WithoutDampingTheColumnStillOscillates) {
     const Column c = settle("", 1.0);
+    // Released from zero stress the undamped column swings about the
+    // geostatic state with an amplitude of that state itself (a step load
+    // doubles the static response): at t = 1 s the worst particle is off by
+    // 105 % (measured), far above the 5 % asserted.
     EXPECT_GT(std::max(c.max_error_v, c.max_error_h), 0.05);
 }

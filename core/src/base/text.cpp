@@ -54,4 +54,11 @@ std::string closest_match(std::string_view word, std::span<const std::string> ca
     return closest_impl(word, candidates);
 }
 
+bool is_snake_identifier(std::string_view s) {
+    if (s.empty() || !(s[0] >= 'a' && s[0] <= 'z')) return false;
+    return std::all_of(s.begin(), s.end(), [](char c) {
+        return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_';
+    });
+}
+
 } // namespace talus

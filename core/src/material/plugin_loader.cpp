@@ -132,12 +132,7 @@ std::vector<double> StateLayout::initial() const {
 // ----------------------------------------------------- descriptor checks --
 namespace {
 
-bool is_snake_identifier(const char *s) {
-    if (!s || !(*s >= 'a' && *s <= 'z')) return false;
-    for (const char *c = s; *c; ++c)
-        if (!((*c >= 'a' && *c <= 'z') || (*c >= '0' && *c <= '9') || *c == '_')) return false;
-    return true;
-}
+bool is_snake_identifier(const char *s) { return s && talus::is_snake_identifier(s); }
 
 // Keys the host owns in a material's YAML; a plugin cannot take them.
 constexpr std::string_view kReservedKeys[] = {"model", "density", "initial_state"};

@@ -2,6 +2,7 @@
 // every one: fixture_abi11_c (plain C on the raw header) and
 // fixture_context_sdk (the C++ SDK). The plugins copy what they were given
 // into their state, so each test compares it with what the host passed.
+#include "one_point_batch.hpp"
 #include "test_paths.hpp"
 
 #include <talus/input/material_yaml.hpp>
@@ -19,6 +20,7 @@
 
 using talus::test::contains;
 using talus::test::fixture;
+using talus::test::OnePoint;
 
 namespace {
 
@@ -30,36 +32,6 @@ struct LogCapture {
         previous = talus::set_plugin_log_sink([this](const std::string &l) { lines.push_back(l); });
     }
     ~LogCapture() { talus::set_plugin_log_sink(previous); }
-};
-
-// One point's batch with the 1.1 context filled as a host does.
-struct OnePoint {
-    std::array<double, 6> de{}, s0{}, s1{};
-    std::array<double, 9> F{1, 0, 0, 0, 1, 0, 0, 0, 1}, R{1, 0, 0, 0, 1, 0, 0, 0, 1};
-    std::vector<double> q0, q1;
-    double rho = 2000.0, c = 0.0, length = 0.25;
-    std::int64_t id = 7;
-    talus_batch batch(std::int64_t step) {
-        q1.assign(q0.size(), 0.0);
-        talus_batch b{};
-        b.flags = TALUS_BATCH_WANT_WAVE_SPEED;
-        b.n_points = 1;
-        b.dt = step == 0 ? 0.0 : 1e-3;
-        b.strain_increment = de.data();
-        b.F_start = F.data();
-        b.F_end = F.data();
-        b.density = &rho;
-        b.stress_start = s0.data();
-        b.stress_end = s1.data();
-        b.state_start = q0.data();
-        b.state_end = q1.data();
-        b.wave_speed = &c;
-        b.step = step;
-        b.point_id = &id;
-        b.characteristic_length = &length;
-        b.rotation = R.data();
-        return b;
-    }
 };
 
 std::vector<talus::ParamValue> abi11_values(std::vector<double> weights, std::string label,

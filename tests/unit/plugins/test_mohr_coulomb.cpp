@@ -50,6 +50,15 @@ std::unique_ptr<talus::MaterialInstance> make(const talus::Model &m,
     return m.create(v);
 }
 
+// phi = 30 deg, psi = 0, c = 0, E = 10 MPa, nu = 0.3.
+std::unique_ptr<talus::MaterialInstance> cohesionless(talus::PluginRegistry &reg) {
+    return make(model(reg), {{"youngs_modulus", 1e7},
+                             {"poisson_ratio", 0.3},
+                             {"friction_angle", 30},
+                             {"dilation_angle", 0},
+                             {"cohesion", 0}});
+}
+
 struct Out {
     Vec6 stress;
     RowMat6 D;
@@ -615,11 +624,7 @@ TEST(MohrCoulomb, RejectsNonsenseNamingTheParameter) {
 // point (a second zero increment changes nothing).
 TEST(MohrCoulomb, StartStressOutsideTheSurfaceIsProjectedWithoutPlasticStrain) {
     talus::PluginRegistry reg;
-    const auto mi = make(model(reg), {{"youngs_modulus", 1e7},
-                                      {"poisson_ratio", 0.3},
-                                      {"friction_angle", 30},
-                                      {"dilation_angle", 0},
-                                      {"cohesion", 0}});
+    const auto mi = cohesionless(reg);
     Vec6 s0;
     s0 << -1e5, -4e5, -1e5, 5e4, 0, 0; // q far beyond the c = 0 cone
     const Out o = call(*mi, s0, Vec6::Zero(), {0.0, 0.0, 0.0});
@@ -640,11 +645,7 @@ TEST(MohrCoulomb, StartStressOutsideTheSurfaceIsProjectedWithoutPlasticStrain) {
 // admissible one passes unchanged and unreported.
 TEST(MohrCoulomb, InitialStressOutsideTheSurfaceIsReturnedAndReported) {
     talus::PluginRegistry reg;
-    const auto mi = make(model(reg), {{"youngs_modulus", 1e7},
-                                      {"poisson_ratio", 0.3},
-                                      {"friction_angle", 30},
-                                      {"dilation_angle", 0},
-                                      {"cohesion", 0}});
+    const auto mi = cohesionless(reg);
     EXPECT_TRUE(mi->model().has_init_state());
     std::vector<std::string> log;
     const auto previous =

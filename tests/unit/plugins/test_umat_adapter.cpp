@@ -4,6 +4,7 @@
 // variables against the closed form of monotonic simple shear; its tangent
 // (DDSDDE through the adapter's reordering) against finite differences in
 // the conformance checks.
+#include "one_point_batch.hpp"
 #include "solver_helpers.hpp"
 #include "test_paths.hpp"
 
@@ -48,6 +49,19 @@ std::string elastic_case(const std::string &material) {
            "      yz: {strain_change: -0.0004}\n      xz: {stress: 0}\n";
 }
 
+// The J2 UMAT's constants (PROPS 1-4) and its closed form in monotonic
+// simple shear (strain gamma_xz only): tau = G gamma until tau_y = sigma_y /
+// sqrt(3), then gamma_p = (G gamma - sigma_y / sqrt(3)) / (G + H / 3), tau =
+// G (gamma - gamma_p), the equivalent plastic strain gamma_p / sqrt(3).
+struct J2Shear {
+    static constexpr double E = 2.0e7, nu = 0.25, sy = 4.0e4, H = 2.0e6;
+    static constexpr double G = E / (2.0 * (1.0 + nu));
+    static double plastic(double gamma) {
+        return std::max(0.0, (G * gamma - sy / std::sqrt(3.0)) / (G + H / 3.0));
+    }
+    static double tau(double gamma) { return G * (gamma - plastic(gamma)); }
+};
+
 std::vector<talus::PointRow> run_case(const std::string &yaml, talus::PluginRegistry &reg) {
     const auto root = talus::yaml::load_string(yaml, "case.yaml");
     const talus::PointCase pc = talus::read_point_case(root, reg);
@@ -73,12 +87,16 @@ TEST(UmatAdapter, ElasticUmatMatchesLinearElasticInTheDriver) {
         for (int c = 0; c < 6; ++c) {
             ASSERT_NEAR(a[i].stress[c], b[i].stress[c], 1e-10 * scale)
                 << "row " << i << " component " << c;
+            // The driver solves the same path for both: strains of 1e-3
+            // agree to round-off (~1e-18); 1e-14 leaves room for the
+            // mixed-control stage's Newton iterations.
             ASSERT_NEAR(a[i].strain[c], b[i].strain[c], 1e-14) << "row " << i;
         }
         // The adapter's STRAN: the strain the driver accumulates (Hencky,
         // tensor shears here, engineering in the state) -- up to the rigid
         // rotation stage, after which STRAN is rotated with the material
-        // (Abaqus' convention) while the driver's columns are not.
+        // (Abaqus' convention) while the driver's columns are not. The same
+        // increments summed in the same order: round-off only.
         if (a[i].stage <= 2) {
             for (int c = 0; c < 6; ++c)
                 ASSERT_NEAR(a[i].state[static_cast<std::size_t>(c)],
@@ -108,14 +126,11 @@ TEST(UmatAdapter, ElasticUmatMatchesLinearElasticInTheDriver) {
     EXPECT_GT((tensor(a[before].state) - expected).cwiseAbs().maxCoeff(), 1e-5); // it did turn
 }
 
-// J2 plasticity with linear hardening in monotonic simple shear (strain
-// gamma_xz only): tau = G gamma until tau_y = sigma_y / sqrt(3), then
-// gamma_p = (G gamma - sigma_y / sqrt(3)) / (G + H / 3), tau = G (gamma -
-// gamma_p), the equivalent plastic strain gamma_p / sqrt(3). Radial return
-// is exact for linear hardening on a radial path: round-off only.
+// J2 plasticity with linear hardening against the closed form of simple
+// shear (J2Shear). Radial return is exact for linear hardening on a radial
+// path: round-off only.
 TEST(UmatAdapter, VonMisesUmatMatchesTheClosedFormOfSimpleShear) {
-    const double E = 2.0e7, nu = 0.25, sy = 4.0e4, H = 2.0e6;
-    const double G = E / (2.0 * (1.0 + nu));
+    const double sy = J2Shear::sy;
     const std::string yaml =
         "talus: 1\nmaterial:\n  model: umat\n  density: 2000\n  library: '" +
         umat("von_mises_umat") +
@@ -129,13 +144,14 @@ TEST(UmatAdapter, VonMisesUmatMatchesTheClosedFormOfSimpleShear) {
     bool yielded = false;
     for (const auto &r : rows) {
         const double gamma = 2.0 * r.strain[5]; // xz, tensor -> engineering
-        const double gp = std::max(0.0, (G * gamma - sy / std::sqrt(3.0)) / (G + H / 3.0));
-        const double tau = G * (gamma - gp);
+        const double gp = J2Shear::plastic(gamma), tau = J2Shear::tau(gamma);
         yielded |= gp > 0.0;
         // Round-off of the return: a few ulps of the yield stress.
         ASSERT_NEAR(r.stress[5], tau, 1e-9 * sy) << "gamma " << gamma;
         for (int c = 0; c < 5; ++c)
             ASSERT_NEAR(r.stress[c], 0.0, 1e-9 * sy) << "gamma " << gamma;
+        // Plastic strains of order 1e-2, sums of 50 increments: round-off
+        // ~1e-17, so 1e-12 is far inside it yet catches any wrong factor.
         ASSERT_NEAR(r.state[0], gp / std::sqrt(3.0), 1e-12) << "gamma " << gamma; // eqp
         ASSERT_NEAR(r.state[5], gp, 1e-12) << "gamma " << gamma; // ep_13 (Abaqus order)
     }
@@ -229,6 +245,9 @@ TEST(UmatAdapter, ElasticUmatMatchesLinearElasticInAScenario) {
             ASSERT_NEAR(pa.x[static_cast<std::size_t>(d)][p], pb.x[static_cast<std::size_t>(d)][p],
                         1e-10)
                 << "particle " << p;
+        // Each step's Hooke update sums the same products in another order
+        // (~1e-16 of the stress); 300 steps of it, fed back through the
+        // motion, stay far below 1e-9 of the largest stress.
         for (std::size_t c = 0; c < 6; ++c)
             ASSERT_NEAR(pa.stress[6 * p + c], pb.stress[6 * p + c], 1e-9 * smax)
                 << "particle " << p;
@@ -268,8 +287,6 @@ TEST(UmatAdapter, EveryArgumentArrivesInItsPlace) {
 // factor, and the driver, retrying in parts, still lands on the closed form
 // of simple shear (the J2 return is exact whatever the increment).
 TEST(UmatAdapter, PnewdtBecomesACutStep) {
-    const double E = 2.0e7, nu = 0.25, sy = 4.0e4, H = 2.0e6;
-    const double G = E / (2.0 * (1.0 + nu));
     // The UMAT refuses increments whose plastic multiplier exceeds 1e-4.
     const std::string yaml =
         "talus: 1\nmaterial:\n  model: umat\n  density: 2000\n  library: '" +
@@ -282,28 +299,12 @@ TEST(UmatAdapter, PnewdtBecomesACutStep) {
     const talus::PointCase pc = talus::read_point_case(root, reg);
 
     // One call straight through the adapter: the whole first increment.
-    std::vector<double> q0 = pc.instance->state().initial(), q1(q0.size());
-    const double de[6] = {0, 0, 0, 0, 0, 0.004}, s0[6] = {};
-    double s1[6], c = 0.0, rho = 2000.0, length = 1.0;
-    const double F[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
-    const std::int64_t id = 0;
-    talus_batch b{};
-    b.flags = TALUS_BATCH_WANT_WAVE_SPEED;
-    b.n_points = 1;
-    b.dt = 0.2;
-    b.strain_increment = de;
-    b.F_start = F;
-    b.F_end = F;
-    b.density = &rho;
-    b.stress_start = s0;
-    b.stress_end = s1;
-    b.state_start = q0.data();
-    b.state_end = q1.data();
-    b.wave_speed = &c;
-    b.step = 1;
-    b.point_id = &id;
-    b.characteristic_length = &length;
-    b.rotation = F;
+    talus::test::OnePoint p;
+    p.q0 = pc.instance->state().initial();
+    p.de = {0, 0, 0, 0, 0, 0.004};
+    p.dt = 0.2;
+    p.id = 0;
+    talus_batch b = p.batch(1);
     const auto r = pc.instance->update(b);
     EXPECT_EQ(r.status, TALUS_STATUS_CUT_STEP);
     EXPECT_EQ(r.cut_factor, 0.5);
@@ -312,8 +313,7 @@ TEST(UmatAdapter, PnewdtBecomesACutStep) {
     // The driver retries in parts and ends on the closed form.
     const auto rows = talus::run_point_case(pc);
     ASSERT_EQ(rows.size(), 6u);
-    const double gamma = 0.01;
-    const double gp = (G * gamma - sy / std::sqrt(3.0)) / (G + H / 3.0);
-    EXPECT_NEAR(rows.back().stress[5], G * (gamma - gp), 1e-9 * sy); // as in the closed-form test
-    EXPECT_NEAR(rows.back().state[0], gp / std::sqrt(3.0), 1e-12);
+    const double gamma = 0.01; // tolerances as in the closed-form test
+    EXPECT_NEAR(rows.back().stress[5], J2Shear::tau(gamma), 1e-9 * J2Shear::sy);
+    EXPECT_NEAR(rows.back().state[0], J2Shear::plastic(gamma) / std::sqrt(3.0), 1e-12);
 }
