@@ -209,7 +209,7 @@ namespace {
 bool is_own_file(const fs::path &p) {
     const std::string name = p.filename().string();
     for (const char *f : {"diagnostics.csv", "probes.csv", "particles.pvd", "failed_call.yaml",
-                          "final_particles.csv", "provenance.json"})
+                          "final_particles.csv", "provenance.json", "stages.csv"})
         if (name == f) return true;
     return (name.rfind("particles_", 0) == 0 || name.rfind("failure_", 0) == 0) &&
            p.extension() == ".vtu";
@@ -246,8 +246,14 @@ class RunOutput {
         diag_ = OutputFile(dir / "diagnostics.csv");
         diag_ << "step,time,dt,mass,momentum_x,momentum_y,momentum_z,kinetic_energy,stress_work,"
                  "angular_momentum_x,angular_momentum_y,angular_momentum_z,particles,removed,"
-                 "cut_steps,held_at_faces\n";
+                 "cut_steps,held_at_faces,stage\n";
         diag_.flush();
+        if (!sc.stages.empty()) {
+            stages_ = OutputFile(dir / "stages.csv");
+            stages_ << "stage,name,first_step,start_time,last_step,end_time,end,"
+                       "kinetic_energy_ratio,last_output\n";
+            stages_.flush();
+        }
         if (!sc.output.probes.empty()) {
             prob_ = OutputFile(dir / "probes.csv");
             std::string h = "time";
@@ -272,6 +278,29 @@ class RunOutput {
     }
 
     int outputs() const { return outputs_; }
+    // Where the last output went, for messages.
+    std::string last_written() const {
+        return sc_.output.vtk
+                   ? fmt::format("{} and the last row of diagnostics.csv", pvd_.back().second)
+                   : "the last row of diagnostics.csv";
+    }
+    // Whether the current state (this step) has been written.
+    bool written_now() const { return last_written_step_ == sim_.steps(); }
+
+    // The end of a stage, after its last output: a row of stages.csv
+    // (scenarios with stages only).
+    void stage_row(StageEnd why, bool met) {
+        if (!stages_.is_open()) return;
+        const StageSpec &st = sim_.stages()[sim_.stage()];
+        const char *end = why == StageEnd::quiescent ? "quiescent"
+                          : st.until && !met         ? "duration_not_quiescent"
+                                                     : "duration";
+        stages_ << fmt::format("{},{},{},{:.17g},{},{:.17g},{},{:.17g},{}\n", sim_.stage(), st.name,
+                               stage_first_step_, sim_.stage_start(), sim_.steps(), sim_.time(),
+                               end, sim_.last_kinetic_energy_ratio(), outputs_ - 1);
+        stages_.flush();
+        stage_first_step_ = sim_.steps() + 1;
+    }
 
     // An output time: the VTK file and the collection, then the rows.
     void write() {
@@ -285,6 +314,7 @@ class RunOutput {
         }
         rows();
         ++outputs_;
+        last_written_step_ = sim_.steps();
     }
 
     // The state when a step failed: failure_step<N>.vtu and a last row of
@@ -309,11 +339,12 @@ class RunOutput {
     void rows() {
         const Diagnostics dg = sim_.diagnostics();
         diag_ << fmt::format("{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},"
-                             "{:.17g},{:.17g},{:.17g},{},{},{},{}\n",
+                             "{:.17g},{:.17g},{:.17g},{},{},{},{},{}\n",
                              dg.step, dg.time, dg.dt, dg.mass, dg.momentum[0], dg.momentum[1],
                              dg.momentum[2], dg.kinetic_energy, dg.stress_work,
                              dg.angular_momentum[0], dg.angular_momentum[1], dg.angular_momentum[2],
-                             dg.particles, dg.removed, dg.cut_steps, dg.held_at_faces);
+                             dg.particles, dg.removed, dg.cut_steps, dg.held_at_faces,
+                             sim_.stage());
         diag_.flush();
         if (!prob_.is_open()) return;
         std::string row = fmt::format("{:.17g}", sim_.time());
@@ -337,7 +368,7 @@ class RunOutput {
                             for (std::size_t c = 0; c < 6; ++c)
                                 row += fmt::format(",{:.17g}", s.stress[6 * k + c]);
                         }
-                if (!found) // removed after leaving the grid
+                if (!found) // removed (it left the grid, or its group was removed)
                     for (int c = 0; c < 3 * D + 6; ++c)
                         row += ",nan";
             } else {
@@ -366,9 +397,11 @@ class RunOutput {
     const Simulation &sim_;
     std::vector<std::int64_t> probe_ids_;
     std::vector<std::string> fields_;
-    OutputFile diag_, prob_;
+    OutputFile diag_, prob_, stages_;
     std::vector<std::pair<double, std::string>> pvd_;
     int outputs_ = 0;
+    long last_written_step_ = -1;
+    long stage_first_step_ = 1;
 };
 
 // When a plugin failed at one particle, the driver case that replays that
@@ -490,6 +523,19 @@ void write_final_particles(const fs::path &file, const Simulation &sim, const st
 
 } // namespace
 
+namespace {
+
+void write_or_stop(RunOutput &out, const Simulation &sim) {
+    try {
+        out.write();
+    } catch (const Error &e) {
+        throw Error(fmt::format("{}\nthe run stopped at step {} (t = {:.6g} s)", e.what(),
+                                sim.steps(), sim.time()));
+    }
+}
+
+} // namespace
+
 RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) {
     const fs::path dir = opt.output_dir.empty() ? default_output_dir(sc.file) : opt.output_dir;
     // A misspelt field is refused before any work, not after the run.
@@ -560,46 +606,88 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
                            sim.particle_count(), prep.plan.steps, prep.plan.first_dt, end);
     const double every = sc.output.every > 0.0 ? sc.output.every : end;
     // Output k is due at k * every; it is written after the first step that
-    // reaches that time (the file and the CSV rows carry the actual time).
-    // Steps are never shortened for an output, so the trajectory does not
-    // depend on the cadence; only the last step is cut to end on `end`.
+    // reaches that time (the file and the CSV rows carry the actual time),
+    // and the end of every stage is written too. Steps are never shortened
+    // for an output, so the trajectory does not depend on the cadence; only
+    // the last step of a stage is cut to end on its duration.
     long next_k = 1;
-    auto due = [&] { return std::min(static_cast<double>(next_k) * every, end); };
-    // Times within a millionth of a step of a target count as reaching it.
-    while (sim.time() < end * (1.0 - 1e-12)) {
+    auto due = [&] { return static_cast<double>(next_k) * every; };
+    for (;;) {
+        const StageSpec &stage = sim.stages()[sim.stage()];
+        StageEnd why = StageEnd::running;
+        while ((why = sim.stage_end_reached()) == StageEnd::running) {
+            try {
+                sim.step(sim.stage_end() - sim.time());
+            } catch (const Error &e) {
+                throw Error(e.what() + out.write_failure() + write_replay_case(sim, dir));
+            }
+            particle_steps += static_cast<long>(sim.particle_count());
+            for (; warnings_shown < sim.warnings().size(); ++warnings_shown)
+                log << "talus: warning: " << sim.warnings()[warnings_shown] << '\n';
+            // Times within a millionth of a step of a target count as
+            // reaching it.
+            if (sim.time() >= due() - 1e-9 * sim.last_dt()) {
+                write_or_stop(out, sim);
+                // One file per output time reached, even if a long step
+                // passed several of them.
+                while (due() <= sim.time() + 1e-9 * sim.last_dt())
+                    ++next_k;
+            }
+            const double interval = opt.progress_tty ? 0.5 : opt.progress_interval;
+            if (opt.progress && elapsed() - last_progress > interval) {
+                last_progress = elapsed();
+                const double rate =
+                    static_cast<double>(particle_steps) / std::max(last_progress, 1e-9);
+                const double eta =
+                    last_progress * (end - sim.time()) / std::max(sim.time(), 1e-300);
+                std::fprintf(stderr,
+                             "%sstep %ld  t = %.4g / %.4g s  dt = %.3g s  elapsed %s  ETA %s  "
+                             "%.3g particle-steps/s%s",
+                             opt.progress_tty ? "\r" : "talus: progress: ", sim.steps(), sim.time(),
+                             end, sim.last_dt(), fmt_time(last_progress).c_str(),
+                             fmt_time(eta).c_str(), rate, opt.progress_tty ? "   " : "\n");
+                std::fflush(stderr);
+            }
+        }
+        // The end of every stage is in the output.
+        if (!out.written_now()) write_or_stop(out, sim);
+        const bool met = why == StageEnd::quiescent;
+        out.stage_row(why, met);
+        if (!sc.stages.empty()) {
+            if (opt.progress && opt.progress_tty) std::fprintf(stderr, "\n");
+            log << fmt::format("talus: stage '{}' ended at t = {:.6g} s (step {}): {}\n",
+                               stage.name, sim.time(), sim.steps(),
+                               met ? fmt::format("at rest (kinetic energy ratio {:.3g})",
+                                                 sim.last_kinetic_energy_ratio())
+                                   : "its duration");
+        }
+        if (stage.until && !met) {
+            const std::string what = fmt::format(
+                "stage '{}' did not come to rest within its duration of {:g} s: the kinetic "
+                "energy ratio is {:.3g} at t = {:.6g} s, the limit {:.3g}{}; the state at the "
+                "stage's end is in {}",
+                stage.name, stage.duration, sim.last_kinetic_energy_ratio(), sim.time(),
+                stage.until->kinetic_energy_ratio,
+                sim.quiet_since()
+                    ? fmt::format(" (below it since t = {:.6g} s, not yet for the hold time)",
+                                  *sim.quiet_since())
+                    : std::string(),
+                out.last_written());
+            if (stage.until->stop_if_not_met)
+                throw Error(stage.until->origin.error(
+                    what + "; lengthen the duration or damp more, or set until.otherwise: "
+                           "continue to go on regardless"));
+            log << stage.until->origin.warning(what + "; going on (until.otherwise: continue)")
+                << '\n';
+        }
+        if (sim.stage() + 1 == sim.stages().size()) break;
         try {
-            sim.step(end - sim.time());
+            sim.begin_next_stage();
         } catch (const Error &e) {
             throw Error(e.what() + out.write_failure() + write_replay_case(sim, dir));
         }
-        particle_steps += static_cast<long>(sim.particle_count());
-        for (; warnings_shown < sim.warnings().size(); ++warnings_shown)
-            log << "talus: warning: " << sim.warnings()[warnings_shown] << '\n';
-        if (sim.time() >= due() - 1e-9 * sim.last_dt()) {
-            try {
-                out.write();
-            } catch (const Error &e) {
-                throw Error(fmt::format("{}\nthe run stopped at step {} (t = {:.6g} s)", e.what(),
-                                        sim.steps(), sim.time()));
-            }
-            // One file per output time reached, even if a long step passed
-            // several of them.
-            while (due() <= sim.time() + 1e-9 * sim.last_dt() && due() < end)
-                ++next_k;
-        }
-        const double interval = opt.progress_tty ? 0.5 : opt.progress_interval;
-        if (opt.progress && elapsed() - last_progress > interval) {
-            last_progress = elapsed();
-            const double rate = static_cast<double>(particle_steps) / std::max(last_progress, 1e-9);
-            const double eta = last_progress * (end - sim.time()) / std::max(sim.time(), 1e-300);
-            std::fprintf(stderr,
-                         "%sstep %ld  t = %.4g / %.4g s  dt = %.3g s  elapsed %s  ETA %s  %.3g "
-                         "particle-steps/s%s",
-                         opt.progress_tty ? "\r" : "talus: progress: ", sim.steps(), sim.time(),
-                         end, sim.last_dt(), fmt_time(last_progress).c_str(), fmt_time(eta).c_str(),
-                         rate, opt.progress_tty ? "   " : "\n");
-            std::fflush(stderr);
-        }
+        log << fmt::format("talus: stage '{}' begins at t = {:.6g} s\n",
+                           sim.stages()[sim.stage()].name, sim.time());
     }
     if (opt.progress && opt.progress_tty) std::fprintf(stderr, "\n");
     if (!opt.final_field.empty())

@@ -24,7 +24,7 @@ const std::vector<std::pair<std::string_view, Keys>> &schema() {
     static const std::vector<std::pair<std::string_view, Keys>> s = {
         {"",
          {"talus", "dimension", "plugins", "grid", "materials", "groups", "boundaries", "gravity",
-          "damping", "nodal_velocities", "particle_velocities", "loads", "solver", "time",
+          "damping", "nodal_velocities", "particle_velocities", "loads", "solver", "time", "stages",
           "output"}},
         {"grid", {"origin", "size", "cell"}},
         {"materials.*", {"model", "density", "initial_state"}},
@@ -54,6 +54,10 @@ const std::vector<std::pair<std::string_view, Keys>> &schema() {
           "leaving_grid"}},
         {"solver.transfer", {"type", "alpha"}},
         {"time", {"end"}},
+        {"stages[]",
+         {"name", "duration", "until", "boundaries", "gravity", "damping", "nodal_velocities",
+          "particle_velocities", "loads", "activate", "remove", "set_material", "reset"}},
+        {"stages[].until", {"kinetic_energy_ratio", "hold", "otherwise"}},
         {"output", {"every", "vtk", "state", "probes"}},
         {"output.probes[]", {"name", "particle", "centre_of_mass"}},
     };
@@ -144,8 +148,8 @@ ComponentFunctions read_components(const yaml::Node &n, std::string_view path, i
     return f;
 }
 
-std::size_t group_index(const yaml::Node &n, const Scenario &s) {
-    const std::string name = n.as_string();
+// The group called `name`; an unknown name fails at `n`.
+std::size_t group_named(const std::string &name, const yaml::Node &n, const Scenario &s) {
     std::vector<std::string> names;
     for (std::size_t g = 0; g < s.groups.size(); ++g) {
         if (s.groups[g].name == name) return g;
@@ -154,6 +158,10 @@ std::size_t group_index(const yaml::Node &n, const Scenario &s) {
     const std::string guess = yaml::closest_match(name, std::span<const std::string>(names));
     n.fail(fmt::format("no group named '{}'{}", name,
                        guess.empty() ? "" : fmt::format(" (did you mean '{}'?)", guess)));
+}
+
+std::size_t group_index(const yaml::Node &n, const Scenario &s) {
+    return group_named(n.as_string(), n, s);
 }
 
 GroupShape read_shape(const yaml::Node &n, int dim) {
@@ -220,6 +228,309 @@ InitialStress read_initial_stress(const yaml::Node &n) {
         }
     }
     return s;
+}
+
+// The conditions a mapping gives (the top level, or a stage): each key it
+// has replaces what `c` held; `prefix` is the mapping's path for messages.
+void read_conditions(const yaml::Node &m, const std::string &prefix, const Scenario &s,
+                     Conditions &c) {
+    // Boundaries.
+    if (const yaml::Node b = m.get("boundaries"); b.defined()) {
+        allow(b, "boundaries");
+        const char *faces[6] = {"x-", "x+", "y-", "y+", "z-", "z+"};
+        for (int f = 0; f < 6; ++f) {
+            const yaml::Node face = b.get(faces[f]);
+            if (!face.raw().IsDefined()) continue;
+            if (f / 2 >= s.dim)
+                face.fail(fmt::format("a {}D scenario has no face '{}'", s.dim, faces[f]));
+            FaceCondition &fc = c.faces[static_cast<std::size_t>(f)];
+            fc = FaceCondition{};
+            if (face.is_map()) {
+                allow(face, "boundaries.*");
+                fc.type = FaceType::friction;
+                const yaml::Node mu = face.require("friction");
+                fc.friction = mu.as_double();
+                if (!(fc.friction >= 0.0))
+                    mu.fail(fmt::format("expected friction >= 0, got {:g}", fc.friction));
+            } else {
+                fc.type = choose<FaceType>(face, {{"free", FaceType::free},
+                                                  {"fixed", FaceType::fixed},
+                                                  {"slip", FaceType::slip},
+                                                  {"roller", FaceType::roller}});
+            }
+        }
+    }
+
+    // Gravity.
+    if (m.has("gravity")) c.gravity_ramp = 0.0;
+    if (const yaml::Node g = m.get("gravity"); g.defined()) {
+        if (g.is_map()) {
+            allow(g, "gravity");
+            c.gravity = vec(g.require("value"), s.dim, "m/s^2");
+            if (const yaml::Node r = g.get("ramp"); r.defined()) {
+                c.gravity_ramp = r.as_double();
+                if (!(c.gravity_ramp >= 0.0)) r.fail("expected ramp >= 0 (s)");
+            }
+        } else {
+            c.gravity = vec(g, s.dim, "m/s^2");
+        }
+    }
+
+    if (const yaml::Node d = m.get("damping"); d.defined() && d.is_scalar()) {
+        // `damping: none` ends a previous stage's damping.
+        if (d.as_string() != "none")
+            d.fail(fmt::format(
+                "expected a mapping {{type: local|viscous, coefficient: a}} or 'none', got '{}'",
+                d.as_string()));
+        c.damping = DampingSpec{};
+    } else if (d.defined()) {
+        allow(d, "damping");
+        c.damping.kind = choose<DampingKind>(
+            d.require("type"), {{"local", DampingKind::local}, {"viscous", DampingKind::viscous}});
+        const yaml::Node cn = d.require("coefficient");
+        c.damping.coefficient = cn.as_double();
+        if (c.damping.kind == DampingKind::local &&
+            !(c.damping.coefficient >= 0.0 && c.damping.coefficient < 1.0))
+            cn.fail(fmt::format("expected 0 <= coefficient < 1 for local damping (the fraction of "
+                                "each unbalanced force removed), got {}",
+                                c.damping.coefficient));
+        if (c.damping.kind == DampingKind::viscous &&
+            !(c.damping.coefficient >= 0.0 && std::isfinite(c.damping.coefficient)))
+            cn.fail(fmt::format("expected a coefficient >= 0 (1/s) for viscous damping, got {}",
+                                c.damping.coefficient));
+    }
+
+    if (m.has("nodal_velocities")) c.nodal_velocities.clear();
+    if (const yaml::Node nv = m.get("nodal_velocities"); nv.defined()) {
+        nv.expect_sequence();
+        for (std::size_t i = 0; i < nv.size(); ++i) {
+            const yaml::Node e = nv.at(i);
+            allow(e, "nodal_velocities[]");
+            NodalVelocity v;
+            v.origin = origin_of(e, fmt::format("{}nodal_velocities[{}]", prefix, i));
+            v.box = read_box(e.require("box"), "nodal_velocities[].box", s.dim);
+            v.velocity =
+                read_components(e.require("velocity"), "nodal_velocities[].velocity", s.dim);
+            c.nodal_velocities.push_back(std::move(v));
+        }
+    }
+    if (m.has("particle_velocities")) c.particle_velocities.clear();
+    if (const yaml::Node pv = m.get("particle_velocities"); pv.defined()) {
+        pv.expect_sequence();
+        for (std::size_t i = 0; i < pv.size(); ++i) {
+            const yaml::Node e = pv.at(i);
+            allow(e, "particle_velocities[]");
+            if (i >= kMaxLoads)
+                e.fail(fmt::format("at most {} particle_velocities entries", kMaxLoads));
+            ParticleVelocity v;
+            v.origin = origin_of(e, fmt::format("{}particle_velocities[{}]", prefix, i));
+            if (const yaml::Node g = e.get("group"); g.defined()) v.group = group_index(g, s);
+            if (const yaml::Node b = e.get("box"); b.defined())
+                v.box = read_box(b, "particle_velocities[].box", s.dim);
+            if (!v.group && !v.box) e.fail("expected a group, a box, or both (their intersection)");
+            v.velocity =
+                read_components(e.require("velocity"), "particle_velocities[].velocity", s.dim);
+            c.particle_velocities.push_back(std::move(v));
+        }
+    }
+    if (m.has("loads")) c.loads.clear();
+    if (const yaml::Node loads = m.get("loads"); loads.defined()) {
+        loads.expect_sequence();
+        for (std::size_t i = 0; i < loads.size(); ++i) {
+            const yaml::Node e = loads.at(i);
+            allow(e, "loads[]");
+            if (i >= kMaxLoads)
+                e.fail(fmt::format("at most {} loads (combine those on the same particles)",
+                                   kMaxLoads));
+            Load l;
+            l.origin = origin_of(e, fmt::format("{}loads[{}]", prefix, i));
+            const bool point = e.has("point"), traction = e.has("traction");
+            if (point == traction)
+                e.fail("expected exactly one of point (N per particle) or traction (Pa)");
+            l.kind = point ? Load::Kind::point : Load::Kind::traction;
+            const yaml::Node val = e.require(point ? "point" : "traction");
+            val.expect_sequence();
+            if (static_cast<int>(val.size()) != s.dim)
+                val.fail(fmt::format(
+                    "expected {} components, each a number or a [time, value] table", s.dim));
+            for (int d = 0; d < s.dim; ++d)
+                l.value[static_cast<std::size_t>(d)] =
+                    read_piecewise_linear(val.at(static_cast<std::size_t>(d)));
+            if (const yaml::Node g = e.get("group"); g.defined()) l.group = group_index(g, s);
+            if (const yaml::Node b = e.get("box"); b.defined())
+                l.box = read_box(b, "loads[].box", s.dim);
+            if (!l.group && !l.box) e.fail("expected a group, a box, or both (their intersection)");
+            c.loads.push_back(std::move(l));
+        }
+    }
+}
+
+// A group's life through the stages, for the checks of each stage's
+// changes: present from the start, or appearing at the stage that
+// activates it, until the one that removes it.
+struct GroupLife {
+    std::vector<std::size_t> appears, removed; // stage index; removed: SIZE_MAX if never
+};
+
+std::vector<std::size_t> group_list(const yaml::Node &n, const Scenario &s) {
+    n.expect_sequence();
+    std::vector<std::size_t> out;
+    for (std::size_t i = 0; i < n.size(); ++i) {
+        const std::size_t g = group_index(n.at(i), s);
+        if (std::find(out.begin(), out.end(), g) != out.end())
+            n.at(i).fail(fmt::format("group '{}' is listed twice", s.groups[g].name));
+        out.push_back(g);
+    }
+    return out;
+}
+
+std::size_t material_index(const yaml::Node &n, const Scenario &s) {
+    const std::string name = n.as_string();
+    std::vector<std::string> names;
+    for (std::size_t m = 0; m < s.materials.size(); ++m) {
+        if (s.materials[m].name == name) return m;
+        names.push_back(s.materials[m].name);
+    }
+    const std::string guess = yaml::closest_match(name, std::span<const std::string>(names));
+    n.fail(fmt::format("no material named '{}' under materials{}", name,
+                       guess.empty() ? "" : fmt::format(" (did you mean '{}'?)", guess)));
+}
+
+void read_stages(const yaml::Node &list, Scenario &s) {
+    list.expect_sequence();
+    if (list.size() == 0) list.fail("expected at least one stage");
+    const std::size_t G = s.groups.size(), never = static_cast<std::size_t>(-1);
+    // First pass over the activations: a group some stage activates is
+    // absent until then.
+    std::vector<std::size_t> appears(G, 0), removed(G, never), material(G);
+    for (std::size_t g = 0; g < G; ++g)
+        material[g] = s.groups[g].material;
+    Conditions current = s.conditions;
+    double total = 0.0;
+    for (std::size_t k = 0; k < list.size(); ++k) {
+        const yaml::Node e = list.at(k);
+        e.expect_map();
+        allow(e, "stages[]");
+        const std::string prefix = fmt::format("stages[{}].", k);
+        StageSpec st;
+        st.origin = origin_of(e, fmt::format("stages[{}]", k));
+        const yaml::Node name = e.require("name");
+        st.name = name.as_string();
+        if (st.name.empty()) name.fail("expected a name (it marks the stage in the output)");
+        for (const StageSpec &o : s.stages)
+            if (o.name == st.name)
+                name.fail(fmt::format("stage name '{}' used twice (it marks the stage in the "
+                                      "output)",
+                                      st.name));
+        st.duration = positive(e.require("duration"), "duration (s)");
+        total += st.duration;
+        if (const yaml::Node u = e.get("until"); u.defined()) {
+            allow(u, "stages[].until");
+            Quiescence q;
+            q.origin = origin_of(u, prefix + "until");
+            const yaml::Node r = u.require("kinetic_energy_ratio");
+            q.kinetic_energy_ratio = r.as_double();
+            if (!(q.kinetic_energy_ratio > 0.0 && q.kinetic_energy_ratio < 1.0))
+                r.fail(fmt::format("expected 0 < kinetic_energy_ratio < 1 (1e-5 is usual), got {}",
+                                   q.kinetic_energy_ratio));
+            if (const yaml::Node h = u.get("hold"); h.defined()) q.hold = positive(h, "hold (s)");
+            if (const yaml::Node o = u.get("otherwise"); o.defined())
+                q.stop_if_not_met = choose<bool>(o, {{"stop", true}, {"continue", false}});
+            st.until = q;
+        }
+        read_conditions(e, prefix, s, current);
+        st.conditions = current;
+        const bool changes =
+            e.has("activate") || e.has("remove") || e.has("set_material") || e.has("reset");
+        if (k == 0 && changes)
+            e.fail("the first stage starts from the groups as the file defines them: activate, "
+                   "remove, set_material and reset belong to later stages (give a group its "
+                   "first material under groups)");
+        if (const yaml::Node a = e.get("activate"); a.defined()) {
+            st.activate = group_list(a, s);
+            for (std::size_t i = 0; i < st.activate.size(); ++i) {
+                const std::size_t g = st.activate[i];
+                if (appears[g] != 0)
+                    a.at(i).fail(fmt::format("group '{}' is activated twice (first in stage "
+                                             "'{}')",
+                                             s.groups[g].name, s.stages[appears[g]].name));
+                appears[g] = k;
+            }
+        }
+        s.stages.push_back(std::move(st));
+    }
+    // Second pass, now that every group's first stage is known: removals
+    // and switches act on present groups only, and so do the stage's loads
+    // and fixities.
+    for (std::size_t k = 0; k < list.size(); ++k) {
+        const yaml::Node e = list.at(k);
+        StageSpec &st = s.stages[k];
+        auto present = [&](std::size_t g) { return appears[g] <= k && removed[g] > k; };
+        auto absent_why = [&](std::size_t g) {
+            return removed[g] <= k
+                       ? fmt::format("it was removed in stage '{}'", s.stages[removed[g]].name)
+                       : fmt::format("it appears in stage '{}'", s.stages[appears[g]].name);
+        };
+        if (const yaml::Node r = e.get("remove"); r.defined()) {
+            st.remove = group_list(r, s);
+            for (std::size_t i = 0; i < st.remove.size(); ++i) {
+                const std::size_t g = st.remove[i];
+                if (!present(g) || appears[g] == k)
+                    r.at(i).fail(
+                        fmt::format("group '{}' is not there to remove in stage '{}': "
+                                    "{}",
+                                    s.groups[g].name, st.name,
+                                    appears[g] == k ? "it appears in this stage" : absent_why(g)));
+            }
+            for (std::size_t g : st.remove)
+                removed[g] = k;
+        }
+        if (const yaml::Node m = e.get("set_material"); m.defined()) {
+            m.expect_map();
+            for (const std::string &gname : m.keys()) {
+                const yaml::Node v = m.get(gname);
+                const std::size_t g = group_named(gname, v, s);
+                const std::size_t to = material_index(v, s);
+                if (!present(g) || appears[g] == k)
+                    v.fail(fmt::format("group '{}' is not there to change in stage '{}': {}", gname,
+                                       st.name,
+                                       appears[g] == k ? "it appears in this stage, give it "
+                                                         "its material under groups"
+                                                       : absent_why(g)));
+                const NamedMaterial &from = s.materials[material[g]], &mt = s.materials[to];
+                if (to == material[g])
+                    v.fail(fmt::format("group '{}' has material '{}' already", gname, mt.name));
+                if (from.spec.density != mt.spec.density)
+                    v.fail(fmt::format(
+                        "material '{}' has density {:g} kg/m^3 and group '{}' has '{}' of "
+                        "{:g} kg/m^3: a switch keeps the particles' mass and volume, so the "
+                        "two densities must be equal",
+                        mt.name, mt.spec.density, gname, from.name, from.spec.density));
+                material[g] = to;
+                st.set_material.push_back({g, to});
+            }
+        }
+        if (const yaml::Node r = e.get("reset"); r.defined()) {
+            r.expect_sequence();
+            for (std::size_t i = 0; i < r.size(); ++i) {
+                const bool disp =
+                    choose<bool>(r.at(i), {{"displacement", true}, {"velocity", false}});
+                (disp ? st.reset_displacement : st.reset_velocity) = true;
+            }
+        }
+        for (const Load &l : st.conditions.loads)
+            if (l.group && !present(*l.group))
+                throw Error(l.origin.error(
+                    fmt::format("acts on group '{}', which is not there in stage '{}': {}",
+                                s.groups[*l.group].name, st.name, absent_why(*l.group))));
+        for (const ParticleVelocity &f : st.conditions.particle_velocities)
+            if (f.group && !present(*f.group))
+                throw Error(f.origin.error(
+                    fmt::format("acts on group '{}', which is not there in stage '{}': {}",
+                                s.groups[*f.group].name, st.name, absent_why(*f.group))));
+    }
+    s.end_time = total;
+    s.end_origin = origin_of(list, "stages");
 }
 
 } // namespace
@@ -346,123 +657,7 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
     }
     if (s.groups.empty()) groups.fail("expected at least one group");
 
-    // Boundaries.
-    if (const yaml::Node b = root.get("boundaries"); b.defined()) {
-        allow(b, "boundaries");
-        const char *faces[6] = {"x-", "x+", "y-", "y+", "z-", "z+"};
-        for (int f = 0; f < 6; ++f) {
-            const yaml::Node c = b.get(faces[f]);
-            if (!c.raw().IsDefined()) continue;
-            if (f / 2 >= s.dim)
-                c.fail(fmt::format("a {}D scenario has no face '{}'", s.dim, faces[f]));
-            FaceCondition &fc = s.faces[static_cast<std::size_t>(f)];
-            if (c.is_map()) {
-                allow(c, "boundaries.*");
-                fc.type = FaceType::friction;
-                const yaml::Node mu = c.require("friction");
-                fc.friction = mu.as_double();
-                if (!(fc.friction >= 0.0))
-                    mu.fail(fmt::format("expected friction >= 0, got {:g}", fc.friction));
-            } else {
-                fc.type = choose<FaceType>(c, {{"free", FaceType::free},
-                                               {"fixed", FaceType::fixed},
-                                               {"slip", FaceType::slip},
-                                               {"roller", FaceType::roller}});
-            }
-        }
-    }
-
-    // Gravity.
-    if (const yaml::Node g = root.get("gravity"); g.defined()) {
-        if (g.is_map()) {
-            allow(g, "gravity");
-            s.gravity = vec(g.require("value"), s.dim, "m/s^2");
-            if (const yaml::Node r = g.get("ramp"); r.defined()) {
-                s.gravity_ramp = r.as_double();
-                if (!(s.gravity_ramp >= 0.0)) r.fail("expected ramp >= 0 (s)");
-            }
-        } else {
-            s.gravity = vec(g, s.dim, "m/s^2");
-        }
-    }
-
-    if (const yaml::Node d = root.get("damping"); d.defined()) {
-        allow(d, "damping");
-        s.damping.kind = choose<DampingKind>(
-            d.require("type"), {{"local", DampingKind::local}, {"viscous", DampingKind::viscous}});
-        const yaml::Node c = d.require("coefficient");
-        s.damping.coefficient = c.as_double();
-        if (s.damping.kind == DampingKind::local &&
-            !(s.damping.coefficient >= 0.0 && s.damping.coefficient < 1.0))
-            c.fail(fmt::format("expected 0 <= coefficient < 1 for local damping (the fraction of "
-                               "each unbalanced force removed), got {}",
-                               s.damping.coefficient));
-        if (s.damping.kind == DampingKind::viscous &&
-            !(s.damping.coefficient >= 0.0 && std::isfinite(s.damping.coefficient)))
-            c.fail(fmt::format("expected a coefficient >= 0 (1/s) for viscous damping, got {}",
-                               s.damping.coefficient));
-    }
-
-    if (const yaml::Node nv = root.get("nodal_velocities"); nv.defined()) {
-        nv.expect_sequence();
-        for (std::size_t i = 0; i < nv.size(); ++i) {
-            const yaml::Node e = nv.at(i);
-            allow(e, "nodal_velocities[]");
-            NodalVelocity v;
-            v.origin = origin_of(e, fmt::format("nodal_velocities[{}]", i));
-            v.box = read_box(e.require("box"), "nodal_velocities[].box", s.dim);
-            v.velocity =
-                read_components(e.require("velocity"), "nodal_velocities[].velocity", s.dim);
-            s.nodal_velocities.push_back(std::move(v));
-        }
-    }
-    if (const yaml::Node pv = root.get("particle_velocities"); pv.defined()) {
-        pv.expect_sequence();
-        for (std::size_t i = 0; i < pv.size(); ++i) {
-            const yaml::Node e = pv.at(i);
-            allow(e, "particle_velocities[]");
-            if (i >= kMaxLoads)
-                e.fail(fmt::format("at most {} particle_velocities entries", kMaxLoads));
-            ParticleVelocity v;
-            v.origin = origin_of(e, fmt::format("particle_velocities[{}]", i));
-            if (const yaml::Node g = e.get("group"); g.defined()) v.group = group_index(g, s);
-            if (const yaml::Node b = e.get("box"); b.defined())
-                v.box = read_box(b, "particle_velocities[].box", s.dim);
-            if (!v.group && !v.box) e.fail("expected a group, a box, or both (their intersection)");
-            v.velocity =
-                read_components(e.require("velocity"), "particle_velocities[].velocity", s.dim);
-            s.particle_velocities.push_back(std::move(v));
-        }
-    }
-    if (const yaml::Node loads = root.get("loads"); loads.defined()) {
-        loads.expect_sequence();
-        for (std::size_t i = 0; i < loads.size(); ++i) {
-            const yaml::Node e = loads.at(i);
-            allow(e, "loads[]");
-            if (i >= kMaxLoads)
-                e.fail(fmt::format("at most {} loads (combine those on the same particles)",
-                                   kMaxLoads));
-            Load l;
-            l.origin = origin_of(e, fmt::format("loads[{}]", i));
-            const bool point = e.has("point"), traction = e.has("traction");
-            if (point == traction)
-                e.fail("expected exactly one of point (N per particle) or traction (Pa)");
-            l.kind = point ? Load::Kind::point : Load::Kind::traction;
-            const yaml::Node val = e.require(point ? "point" : "traction");
-            val.expect_sequence();
-            if (static_cast<int>(val.size()) != s.dim)
-                val.fail(fmt::format(
-                    "expected {} components, each a number or a [time, value] table", s.dim));
-            for (int d = 0; d < s.dim; ++d)
-                l.value[static_cast<std::size_t>(d)] =
-                    read_piecewise_linear(val.at(static_cast<std::size_t>(d)));
-            if (const yaml::Node g = e.get("group"); g.defined()) l.group = group_index(g, s);
-            if (const yaml::Node b = e.get("box"); b.defined())
-                l.box = read_box(b, "loads[].box", s.dim);
-            if (!l.group && !l.box) e.fail("expected a group, a box, or both (their intersection)");
-            s.loads.push_back(std::move(l));
-        }
-    }
+    read_conditions(root, "", s, s.conditions);
 
     // Solver.
     if (const yaml::Node sv = root.get("solver"); sv.defined()) {
@@ -539,10 +734,17 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
                 n, {{"stop", LeavePolicy::stop}, {"remove", LeavePolicy::remove}});
     }
 
-    const yaml::Node time = root.require("time");
-    allow(time, "time");
-    s.end_time = positive(time.require("end"), "end (s)");
-    s.end_origin = origin_of(time.require("end"));
+    if (const yaml::Node st = root.get("stages"); st.defined()) {
+        if (const yaml::Node time = root.get("time"); time.defined())
+            time.fail("with stages, each stage gives its duration and the run ends with the last "
+                      "one; remove time");
+        read_stages(st, s);
+    } else {
+        const yaml::Node time = root.require("time");
+        allow(time, "time");
+        s.end_time = positive(time.require("end"), "end (s)");
+        s.end_origin = origin_of(time.require("end"));
+    }
 
     if (const yaml::Node out = root.get("output"); out.defined()) {
         allow(out, "output");

@@ -176,6 +176,12 @@ void write_vtu(const fs::path &file, const Simulation &sim,
     xml += fmt::format("        <DataArray type=\"Float64\" Name=\"TimeValue\" "
                        "NumberOfTuples=\"1\" format=\"ascii\">{:.17g}</DataArray>\n",
                        sim.time());
+    // Which stage the file belongs to (docs/scenario-reference.md, stages).
+    xml += fmt::format("        <DataArray type=\"Int32\" Name=\"Stage\" NumberOfTuples=\"1\" "
+                       "format=\"ascii\">{}</DataArray>\n",
+                       sim.stage());
+    if (const std::string &stage = sim.stages()[sim.stage()].name; !stage.empty())
+        xml += string_array("stage_name", {stage});
     xml += "      </FieldData>\n";
     xml += fmt::format("    <Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">\n", n, n);
     xml += "      <PointData>\n";

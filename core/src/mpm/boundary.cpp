@@ -9,8 +9,9 @@
 
 namespace talus {
 
-Boundary::Boundary(const Scenario &sc, const Grid &grid) : dim_(sc.dim), faces_(sc.faces) {
-    for (const NodalVelocity &nv : sc.nodal_velocities) {
+Boundary::Boundary(const Scenario &sc, const Conditions &c, const Grid &grid, double t0)
+    : dim_(sc.dim), t0_(t0), faces_(c.faces) {
+    for (const NodalVelocity &nv : c.nodal_velocities) {
         Prescribed p{{}, nv.velocity};
         // A node stands for its Greville point (clamped B-splines).
         for (std::size_t i = 0; i < grid.n_nodes; ++i) {
@@ -24,7 +25,7 @@ Boundary::Boundary(const Scenario &sc, const Grid &grid) : dim_(sc.dim), faces_(
                 face_layer(sc.solver.shape) > 0 ? ", at their Greville points near a face" : "")));
         prescribed_.push_back(std::move(p));
     }
-    for (const ParticleVelocity &pv : sc.particle_velocities)
+    for (const ParticleVelocity &pv : c.particle_velocities)
         fixities_.push_back(pv.velocity);
 }
 
@@ -33,7 +34,8 @@ Boundary::Boundary(const Scenario &sc, const Grid &grid) : dim_(sc.dim), faces_(
 // Coulomb friction, its tangential speed is reduced by mu times the normal
 // speed removed (a velocity projection of the impulse).
 void Boundary::apply(const Grid &grid, double *field, std::size_t offset, const double *fixity,
-                     double t) const {
+                     double t_run) const {
+    const double t = t_run - t0_;
     auto V = [&](std::size_t i) { return field + node::kRecord * i + offset; };
     for (int f = 0; f < 2 * dim_; ++f) {
         const FaceCondition &fc = faces_[static_cast<std::size_t>(f)];

@@ -15,11 +15,12 @@ namespace talus {
 
 class Boundary {
   public:
-    // Finds the nodes of each prescribed-velocity box; throws (at the
-    // entry's place in the file) if a box holds none.
-    Boundary(const Scenario &sc, const Grid &grid);
+    // The conditions `c` of a stage that began at t0 (its functions are of
+    // the time since). Finds the nodes of each prescribed-velocity box;
+    // throws (at the entry's place in the file) if a box holds none.
+    Boundary(const Scenario &sc, const Conditions &c, const Grid &grid, double t0);
 
-    // Applies every condition at time t to the velocity at `offset` of the
+    // Applies every condition at (the run's) time t to the velocity at `offset` of the
     // node records `field` (Grid::vel at node::kVelocity or kEndVelocity,
     // or another field laid out the same way). `fixity` is Grid::acc: its
     // node::kFixity slot says which fixities reach a node.
@@ -44,6 +45,7 @@ class Boundary {
         ComponentFunctions velocity;
     };
     int dim_;
+    double t0_;
     std::array<FaceCondition, 6> faces_;
     std::vector<Prescribed> prescribed_;
     std::vector<ComponentFunctions> fixities_;

@@ -1,7 +1,7 @@
-// The forcing of one step: gravity (with its ramp), the applied loads on
-// particles, and the particle velocity fixities, each function of time
-// evaluated once per step (not once per particle) into plain arrays that
-// the kernels read through a particle's bit masks.
+// The forcing of one step in a stage: gravity (with its ramp), the applied
+// loads on particles, and the particle velocity fixities, each function of
+// the stage's time evaluated once per step (not once per particle) into
+// plain arrays that the kernels read through a particle's bit masks.
 #pragma once
 
 #include <talus/mpm/scenario.hpp>
@@ -15,10 +15,15 @@ namespace talus {
 
 class Loads {
   public:
-    explicit Loads(const Scenario &sc);
-    // Values at time t (gravity, loads) and over [t, t + dt] (fixities).
+    // The stage's conditions `c`, from time t0 on; its gravity ramp starts
+    // from `gravity_before` (the previous stage's).
+    Loads(const Scenario &sc, const Conditions &c, const Vec3 &gravity_before, double t0);
+    // Values at time t (gravity, loads) and over [t, t + dt] (fixities);
+    // t is the run's time.
     void evaluate(double t, double dt);
 
+    // Gravity at (the run's) time t, m/s^2.
+    Vec3 gravity_at(double t) const;
     // Gravity at the evaluated time, m/s^2.
     const double *gravity() const { return gravity_now_.data(); }
     // Sum of the applied forces on a particle of `group` with load mask
@@ -68,8 +73,8 @@ class Loads {
 
   private:
     int dim_;
-    std::array<double, 3> gravity_, gravity_now_{0, 0, 0};
-    double gravity_ramp_;
+    std::array<double, 3> gravity_, gravity_before_, gravity_now_{0, 0, 0};
+    double gravity_ramp_, t0_;
     std::vector<std::array<PiecewiseLinear, 3>> load_fn_;
     std::vector<std::uint8_t> traction_;
     std::vector<double> group_area_; // traction area (h / ppc)^(dim - 1) per group

@@ -63,6 +63,18 @@ void MaterialUpdate::run(std::vector<ParticleSet> &sets, const Increment &inc, b
     }
 }
 
+void MaterialUpdate::start(std::vector<ParticleSet> &sets, std::size_t set, std::size_t begin,
+                           std::size_t count, double t, UpdateFailures &failures) {
+    prepare(sets);
+    static const double zero_L[9] = {};
+    const Increment inc{.t = t};
+    const std::size_t B = batch_;
+    par::for_each_block((count + B - 1) / B, [&](std::size_t b) {
+        const std::size_t first = begin + b * B;
+        block(sets[set], set, first, std::min(B, begin + count - first), zero_L, 0, inc, failures);
+    });
+}
+
 double *MaterialUpdate::gradient_buffer() {
     return scratch_[static_cast<std::size_t>(par::thread_index())].L.data();
 }

@@ -70,6 +70,12 @@ class MaterialUpdate {
     // (the grid's cell size; talus_batch.characteristic_length).
     MaterialUpdate(MaterialNames names, int batch_size, double characteristic_length);
 
+    // The set-up call (talus_model.init_state, or update with dt = 0) for
+    // points [begin, begin + count) of set s at time t: particles that
+    // appear, or change material, in the middle of a run.
+    void start(std::vector<ParticleSet> &sets, std::size_t set, std::size_t begin,
+               std::size_t count, double t, UpdateFailures &failures);
+
     // Points per block (the plugin's batch).
     std::size_t block_size() const { return batch_; }
     // Grows the per-thread scratch for these sets and the current thread

@@ -70,7 +70,7 @@ std::vector<std::array<double, 3>> lattice_points(const Scenario &sc, const Grou
 // The stress at t = 0 at height x[D-1]: uniform, or geostatic
 // sigma_v = rho g (surface - height), tension positive, sigma_h = K0 sigma_v.
 void initial_stress(const Scenario &sc, const GroupSpec &gs, const Box &bounds, double rho0,
-                    const double *x, double *sig) {
+                    const Vec3 &gravity, const double *x, double *sig) {
     const int D = sc.dim;
     std::fill_n(sig, 6, 0.0);
     if (gs.stress.kind == InitialStress::Kind::uniform)
@@ -78,7 +78,7 @@ void initial_stress(const Scenario &sc, const GroupSpec &gs, const Box &bounds, 
     if (gs.stress.kind != InitialStress::Kind::geostatic) return;
     const std::size_t up = static_cast<std::size_t>(D - 1);
     const double surface = gs.stress.surface.value_or(bounds.max[up]);
-    const double sv = rho0 * sc.gravity[up] * std::max(0.0, surface - x[up]);
+    const double sv = rho0 * gravity[up] * std::max(0.0, surface - x[up]);
     for (int d = 0; d < 3; ++d)
         sig[d] = d == D - 1 ? sv : gs.stress.k0 * sv;
 }
@@ -86,7 +86,7 @@ void initial_stress(const Scenario &sc, const GroupSpec &gs, const Box &bounds, 
 // Particle p of set s at x, of group gi (whose shape's bounding box is bb):
 // every column at its initial value.
 void place(const Scenario &sc, std::size_t gi, const Box &bb, const std::vector<double> &q_init,
-           const std::array<double, 3> &x, ParticleSet &s, std::size_t p) {
+           const Vec3 &gravity, const std::array<double, 3> &x, ParticleSet &s, std::size_t p) {
     const GroupSpec &gs = sc.groups[gi];
     const int D = sc.dim;
     s.group[p] = static_cast<std::int32_t>(gi);
@@ -108,7 +108,7 @@ void place(const Scenario &sc, std::size_t gi, const Box &bb, const std::vector<
     for (std::size_t a = 0; a < 9; a += 4)
         s.F[9 * p + a] = 1.0;
     s.J[p] = 1.0;
-    initial_stress(sc, gs, bb, s.rho0, x.data(), &s.stress[6 * p]);
+    initial_stress(sc, gs, bb, s.rho0, gravity, x.data(), &s.stress[6 * p]);
     std::copy(q_init.begin(), q_init.end(), s.state.data() + p * s.state_size);
     if (s.has_C) {
         // The affine transfers start from the rigid motion's exact velocity
@@ -121,71 +121,98 @@ void place(const Scenario &sc, std::size_t gi, const Box &bb, const std::vector<
         C[6] = -w[1];
         C[7] = w[0];
     }
-    std::uint32_t lm = 0, fm = 0;
-    for (std::size_t l = 0; l < sc.loads.size(); ++l) {
-        const Load &ld = sc.loads[l];
-        if ((!ld.group || *ld.group == gi) && (!ld.box || ld.box->contains(x.data(), D)))
-            lm |= 1u << l;
-    }
-    for (std::size_t f = 0; f < sc.particle_velocities.size(); ++f) {
-        const ParticleVelocity &pv = sc.particle_velocities[f];
-        if ((!pv.group || *pv.group == gi) && (!pv.box || pv.box->contains(x.data(), D)))
-            fm |= 1u << f;
-    }
-    s.load_mask[p] = lm;
-    s.fix_mask[p] = fm;
-}
-
-// A load or a fixity that acts on nothing is a mistake in its box or
-// group, not a no-op.
-void check_selections(const Scenario &sc, const std::vector<ParticleSet> &sets) {
-    auto selected = [&](std::size_t k, bool load) {
-        for (const ParticleSet &s : sets)
-            for (std::size_t p = 0; p < s.n; ++p)
-                if (((load ? s.load_mask[p] : s.fix_mask[p]) >> k) & 1u) return true;
-        return false;
-    };
-    constexpr const char *what =
-        "selects no particle (its box and group have no particle in common at t = 0)";
-    for (std::size_t k = 0; k < sc.loads.size(); ++k)
-        if (!selected(k, true)) throw Error(sc.loads[k].origin.error(what));
-    for (std::size_t k = 0; k < sc.particle_velocities.size(); ++k)
-        if (!selected(k, false)) throw Error(sc.particle_velocities[k].origin.error(what));
 }
 
 } // namespace
 
 std::vector<ParticleSet>
-generate_particles(const Scenario &sc, ColumnsInUse columns,
-                   const std::vector<std::unique_ptr<MaterialInstance>> &instances) {
+make_sets(const Scenario &sc, ColumnsInUse columns,
+          const std::vector<std::unique_ptr<MaterialInstance>> &instances) {
     std::vector<ParticleSet> sets;
-    std::vector<int> set_of(sc.materials.size(), -1);
-    std::int64_t next_id = 0;
-    const std::size_t up = static_cast<std::size_t>(sc.dim - 1);
-    for (std::size_t gi = 0; gi < sc.groups.size(); ++gi) {
-        const GroupSpec &gs = sc.groups[gi];
-        if (gs.stress.kind == InitialStress::Kind::geostatic && !(sc.gravity[up] < 0.0))
-            throw Error(gs.stress_origin.error(
-                fmt::format("a geostatic initial stress needs gravity pointing down the last "
-                            "axis ({}), got {:g} m/s^2 (set gravity:)",
-                            sc.dim == 2 ? "y" : "z", sc.gravity[up])));
-        if (set_of[gs.material] < 0) {
-            set_of[gs.material] = static_cast<int>(sets.size());
-            sets.push_back(new_set(sc, gs.material, columns, instances[gs.material].get()));
-        }
-        ParticleSet &s = sets[static_cast<std::size_t>(set_of[gs.material])];
-        const std::vector<std::array<double, 3>> points = lattice_points(sc, gs);
-        const std::vector<double> &q_init = sc.materials[gs.material].spec.initial_state;
-        const Box bb = gs.shape.bounds(sc.dim);
-        const std::size_t first = s.n;
-        s.resize(first + points.size());
-        for (std::size_t k = 0; k < points.size(); ++k) {
-            s.id[first + k] = next_id++;
-            place(sc, gi, bb, q_init, points[k], s, first + k);
-        }
-    }
-    check_selections(sc, sets);
+    auto use = [&](std::size_t m) {
+        for (const ParticleSet &s : sets)
+            if (s.material == m) return;
+        sets.push_back(new_set(sc, m, columns, instances[m].get()));
+    };
+    for (const GroupSpec &g : sc.groups)
+        use(g.material);
+    for (const StageSpec &st : sc.stages)
+        for (const MaterialSwitch &sw : st.set_material)
+            use(sw.material);
     return sets;
+}
+
+std::size_t set_of_material(const std::vector<ParticleSet> &sets, std::size_t material) {
+    for (std::size_t k = 0; k < sets.size(); ++k)
+        if (sets[k].material == material) return k;
+    throw std::logic_error("no particle set for a material in use");
+}
+
+std::vector<std::int64_t> first_ids(const Scenario &sc) {
+    std::vector<std::int64_t> first;
+    std::int64_t next = 0;
+    for (const GroupSpec &gs : sc.groups) {
+        first.push_back(next);
+        next += static_cast<std::int64_t>(lattice_points(sc, gs).size());
+    }
+    return first;
+}
+
+void add_group(const Scenario &sc, std::size_t gi, const Vec3 &gravity, std::int64_t first_id,
+               std::vector<ParticleSet> &sets) {
+    const GroupSpec &gs = sc.groups[gi];
+    const std::size_t up = static_cast<std::size_t>(sc.dim - 1);
+    if (gs.stress.kind == InitialStress::Kind::geostatic && !(gravity[up] < 0.0))
+        throw Error(gs.stress_origin.error(
+            fmt::format("a geostatic initial stress needs gravity pointing down the last "
+                        "axis ({}) when the group appears, got {:g} m/s^2 (set gravity:)",
+                        sc.dim == 2 ? "y" : "z", gravity[up])));
+    ParticleSet &s = sets[set_of_material(sets, gs.material)];
+    const std::vector<std::array<double, 3>> points = lattice_points(sc, gs);
+    const std::vector<double> &q_init = sc.materials[gs.material].spec.initial_state;
+    const Box bb = gs.shape.bounds(sc.dim);
+    const std::size_t first = s.n;
+    s.resize(first + points.size());
+    for (std::size_t k = 0; k < points.size(); ++k) {
+        s.id[first + k] = first_id + static_cast<std::int64_t>(k);
+        place(sc, gi, bb, q_init, gravity, points[k], s, first + k);
+    }
+}
+
+// A load or a fixity that acts on nothing is a mistake in its box or
+// group, not a no-op.
+void select_particles(const Scenario &sc, const Conditions &c, std::vector<ParticleSet> &sets,
+                      std::string_view when) {
+    const int D = sc.dim;
+    std::vector<char> load_used(c.loads.size(), 0), fix_used(c.particle_velocities.size(), 0);
+    for (ParticleSet &s : sets)
+        for (std::size_t p = 0; p < s.n; ++p) {
+            const double x[3] = {s.x[0][p], s.x[1][p], D == 3 ? s.x[2][p] : 0.0};
+            const auto gi = static_cast<std::size_t>(s.group[p]);
+            std::uint32_t lm = 0, fm = 0;
+            for (std::size_t l = 0; l < c.loads.size(); ++l) {
+                const Load &ld = c.loads[l];
+                if ((!ld.group || *ld.group == gi) && (!ld.box || ld.box->contains(x, D))) {
+                    lm |= 1u << l;
+                    load_used[l] = 1;
+                }
+            }
+            for (std::size_t f = 0; f < c.particle_velocities.size(); ++f) {
+                const ParticleVelocity &pv = c.particle_velocities[f];
+                if ((!pv.group || *pv.group == gi) && (!pv.box || pv.box->contains(x, D))) {
+                    fm |= 1u << f;
+                    fix_used[f] = 1;
+                }
+            }
+            s.load_mask[p] = lm;
+            s.fix_mask[p] = fm;
+        }
+    const std::string what =
+        fmt::format("selects no particle (its box and group have no particle in common {})", when);
+    for (std::size_t k = 0; k < c.loads.size(); ++k)
+        if (!load_used[k]) throw Error(c.loads[k].origin.error(what));
+    for (std::size_t k = 0; k < c.particle_velocities.size(); ++k)
+        if (!fix_used[k]) throw Error(c.particle_velocities[k].origin.error(what));
 }
 
 } // namespace talus

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstring>
 #include <new>
+#include <stdexcept>
 
 namespace talus {
 
@@ -58,6 +59,31 @@ void ParticleSet::move(std::size_t from, std::size_t to) {
     for_each_column([&](auto &col, std::size_t stride) {
         std::copy_n(col.data_ + from * stride, stride, col.data_ + to * stride);
     });
+}
+
+void ParticleSet::copy_point(ParticleSet &other, std::size_t p, std::size_t q) {
+    // Both sets walk the same columns in the same order, but for the state
+    // (whose size depends on the material), skipped in both.
+    struct Source {
+        const std::byte *at;
+        std::size_t bytes;
+    };
+    std::array<Source, 48> src{};
+    std::size_t k = 0;
+    other.for_each_column([&](auto &col, std::size_t stride) {
+        if (static_cast<const void *>(&col) == static_cast<const void *>(&other.state)) return;
+        src.at(k++) = {reinterpret_cast<const std::byte *>(col.data() + p * stride),
+                       stride * sizeof(*col.data())};
+    });
+    std::size_t j = 0;
+    for_each_column([&](auto &col, std::size_t stride) {
+        if (static_cast<const void *>(&col) == static_cast<const void *>(&state)) return;
+        const Source s = src.at(j++);
+        if (s.bytes != stride * sizeof(*col.data()))
+            throw std::logic_error("copy_point: the two sets use different columns");
+        std::memcpy(col.data() + q * stride, s.at, s.bytes);
+    });
+    if (j != k) throw std::logic_error("copy_point: the two sets use different columns");
 }
 
 } // namespace talus

@@ -39,7 +39,7 @@ void Simulation::Impl::grid_velocity(double t) {
 
 void Simulation::Impl::grid_update(double t, double dt) {
     auto tm = timer(Phase::grid_update);
-    talus::grid_update(grid, boundary, t, dt, sc.damping);
+    talus::grid_update(grid, boundary, t, dt, conditions().damping);
 }
 
 void Simulation::Impl::remapped_velocity(double t_end) {

@@ -111,4 +111,21 @@ std::string Origin::note(std::string_view what) const {
     return fmt::format("{}: note: '{}' {}", where, key, what);
 }
 
+std::vector<StageSpec> stages_of(const Scenario &sc) {
+    if (!sc.stages.empty()) return sc.stages;
+    StageSpec only;
+    only.duration = sc.end_time;
+    only.conditions = sc.conditions;
+    only.origin = sc.end_origin;
+    return {only};
+}
+
+std::vector<std::size_t> first_stage_of_groups(const Scenario &sc) {
+    std::vector<std::size_t> first(sc.groups.size(), 0);
+    for (std::size_t k = 1; k < sc.stages.size(); ++k)
+        for (std::size_t g : sc.stages[k].activate)
+            first[g] = k;
+    return first;
+}
+
 } // namespace talus

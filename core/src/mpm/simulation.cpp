@@ -16,9 +16,11 @@ namespace talus {
 namespace {
 
 const Scenario &checked(const Scenario &sc) {
-    if (sc.loads.size() > kMaxLoads || sc.particle_velocities.size() > kMaxLoads)
-        throw Error(fmt::format("{}: at most {} loads and {} particle_velocities entries", sc.file,
-                                kMaxLoads, kMaxLoads));
+    for (const StageSpec &st : stages_of(sc))
+        if (st.conditions.loads.size() > kMaxLoads ||
+            st.conditions.particle_velocities.size() > kMaxLoads)
+            throw Error(fmt::format("{}: at most {} loads and {} particle_velocities entries",
+                                    sc.file, kMaxLoads, kMaxLoads));
     return sc;
 }
 
@@ -62,40 +64,62 @@ MaterialNames names_of(const Scenario &sc, const std::vector<ParticleSet> &sets)
     return n;
 }
 
-// The plugin instance of every material some group uses; a parameter set
-// the plugin refuses is reported at the material's place in the file.
+// The plugin instance of every material some group uses or some stage
+// switches a group to; a parameter set the plugin refuses is reported at
+// the material's place in the file.
 std::vector<std::unique_ptr<MaterialInstance>> make_instances(const Scenario &sc) {
     std::vector<std::unique_ptr<MaterialInstance>> out(sc.materials.size());
-    for (const GroupSpec &g : sc.groups) {
-        if (out[g.material]) continue;
-        const NamedMaterial &m = sc.materials[g.material];
+    auto make = [&](std::size_t k) {
+        if (out[k]) return;
+        const NamedMaterial &m = sc.materials[k];
         try {
-            out[g.material] = instantiate(m.spec);
+            out[k] = instantiate(m.spec);
         } catch (const Error &e) {
             throw Error(m.origin.error(e.what()));
         }
-    }
+    };
+    for (const GroupSpec &g : sc.groups)
+        make(g.material);
+    for (const StageSpec &st : sc.stages)
+        for (const MaterialSwitch &sw : st.set_material)
+            make(sw.material);
     return out;
 }
 
-Domain domain_of(const Scenario &sc) {
-    Domain dom;
-    for (std::size_t d = 0; d < static_cast<std::size_t>(sc.dim); ++d) {
-        dom.lo[d] = sc.origin[d];
-        dom.hi[d] = sc.origin[d] + sc.size[d];
-        dom.closed_lo[d] = sc.faces[2 * d].type != FaceType::free;
-        dom.closed_hi[d] = sc.faces[2 * d + 1].type != FaceType::free;
-    }
-    return dom;
+// The particles at t = 0: the groups present from the start, with the
+// first stage's loads and fixities selected.
+std::vector<ParticleSet>
+initial_particles(const Scenario &sc, const std::vector<StageSpec> &stages,
+                  const std::vector<std::int64_t> &first_id,
+                  const std::vector<std::unique_ptr<MaterialInstance>> &instances) {
+    std::vector<ParticleSet> sets = make_sets(sc, columns_of(sc.solver), instances);
+    const std::vector<std::size_t> first_stage = first_stage_of_groups(sc);
+    for (std::size_t g = 0; g < sc.groups.size(); ++g)
+        if (first_stage[g] == 0) add_group(sc, g, stages[0].conditions.gravity, first_id[g], sets);
+    select_particles(sc, stages[0].conditions, sets, "at t = 0");
+    return sets;
 }
 
 } // namespace
 
+Domain domain_of(const Scenario &sc, const Conditions &c) {
+    Domain dom;
+    for (std::size_t d = 0; d < static_cast<std::size_t>(sc.dim); ++d) {
+        dom.lo[d] = sc.origin[d];
+        dom.hi[d] = sc.origin[d] + sc.size[d];
+        dom.closed_lo[d] = c.faces[2 * d].type != FaceType::free;
+        dom.closed_hi[d] = c.faces[2 * d + 1].type != FaceType::free;
+    }
+    return dom;
+}
+
 Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options)
-    : sc(checked(scenario)), opt(options),
-      grid(sc.dim, sc.origin, sc.size, sc.cell, sc.solver.shape), boundary(sc, grid),
-      instances(make_instances(sc)), sets(generate_particles(sc, columns_of(sc.solver), instances)),
-      order(grid.geo, sets.size()), loads(sc), domain(domain_of(sc)),
+    : sc(checked(scenario)), opt(options), stages(stages_of(sc)), first_id(first_ids(sc)),
+      grid(sc.dim, sc.origin, sc.size, sc.cell, sc.solver.shape),
+      boundary(sc, stages[0].conditions, grid, 0.0), instances(make_instances(sc)),
+      sets(initial_particles(sc, stages, first_id, instances)), order(grid.geo, sets.size()),
+      loads(sc, stages[0].conditions, Vec3{0, 0, 0}, 0.0),
+      domain(domain_of(sc, stages[0].conditions)),
       materials(names_of(sc, sets), opt.batch_size, sc.cell), variant(variant_of(sc.solver)),
       isa(talus::kernel_isa()), velocity_motion(velocity_motion_of(sc.solver)) {
     for (const GroupSpec &g : sc.groups)
@@ -113,6 +137,7 @@ Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options)
     if (const MaterialFailure *f = failures.material.first()) material_failed(*f, 0);
     failed_call.reset(); // the constructor throws: nobody to replay for
     order.sort(sets);
+    arm_quiescence();
 }
 
 Simulation::Simulation(const Scenario &scenario, SolverOptions options) {
@@ -145,6 +170,7 @@ void Simulation::step(double max_dt) {
     g.time = t + dt;
     g.last_dt = dt;
     ++g.step;
+    g.watch_quiescence();
 }
 
 // dt = cfl h / max(c_p + |v_p|) (seed 000 eq. 45), from the last pass of the

@@ -19,6 +19,7 @@
 
 #include <array>
 #include <chrono>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -48,9 +49,20 @@ enum class StepVariant {
     usavg
 };
 
+// The domain and its closed faces under a stage's conditions.
+Domain domain_of(const Scenario &sc, const Conditions &c);
+
 struct Simulation::Impl {
     const Scenario &sc;
     SolverOptions opt;
+    std::vector<StageSpec> stages;      // stages_of(sc)
+    std::vector<std::int64_t> first_id; // per group: the id of its first particle
+    std::size_t stage = 0;
+    double stage_start = 0.0;
+    // The stage's quiescence test (Quiescence): its hold time, since when
+    // the ratio has stayed below the limit, and its last value.
+    std::optional<double> hold, below_since;
+    double ratio = std::numeric_limits<double>::quiet_NaN();
     Grid grid;
     Boundary boundary;
     std::vector<std::unique_ptr<MaterialInstance>> instances; // per material used, else null
@@ -100,6 +112,20 @@ struct Simulation::Impl {
     // sums, with cell-averaged dilation).
     void material_update(double t, double dt);
     void move_particles(PositionStep step);
+
+    const Conditions &conditions() const { return stages[stage].conditions; }
+    // The changes a stage makes when it begins (stages.cpp).
+    void begin_stage(std::size_t k);
+    void add_groups(const std::vector<std::size_t> &groups, const Vec3 &gravity);
+    void remove_groups(const std::vector<std::size_t> &groups);
+    void switch_material(const MaterialSwitch &sw);
+    // The set-up call for points [begin, s.n) of set `set` (they appeared,
+    // or changed material); throws as a material failure would.
+    void start_points(std::size_t set, std::size_t begin);
+    double kinetic_energy_ratio() const;
+    double default_hold() const;
+    void arm_quiescence();   // at a stage's start
+    void watch_quiescence(); // after each step
 
     double time_step();
     void check_fixed_dt(double dt_crit) const;

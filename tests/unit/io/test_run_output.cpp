@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <fstream>
 #include <sstream>
 
 namespace {
@@ -230,4 +231,122 @@ TEST(RunOutput, AMisspeltPlotFieldIsRefusedBeforeTheRun) {
             << e.what();
     }
     EXPECT_FALSE(fs::exists(dir));
+}
+
+namespace {
+
+// The column of the damping tests, in stages.
+std::string staged_column(const std::string &stages) {
+    return "talus: 1\ndimension: 2\ngrid: {origin: [0, 0], size: [0.2, 1.2], cell: 0.05}\n"
+           "materials:\n  soil: {model: linear_elastic, density: 2000, youngs_modulus: 2.0e7, "
+           "poisson_ratio: 0.3}\n"
+           "groups:\n  column: {material: soil, shape: {box: {min: [0, 0], max: [0.2, 1.0]}}}\n"
+           "boundaries: {x-: slip, x+: slip, y-: fixed}\ngravity: [0, -9.81]\n"
+           "output: {every: 0.07}\nstages:\n" +
+           stages;
+}
+
+std::vector<std::string> lines_of(const fs::path &file) {
+    std::ifstream in(file);
+    std::vector<std::string> out;
+    for (std::string line; std::getline(in, line);)
+        out.push_back(line);
+    return out;
+}
+
+} // namespace
+
+// Where each stage ends is in the output whatever the cadence: stages.csv
+// says when and how each ended and which VTK file holds its last state,
+// that file carries the stage in its field data, and diagnostics.csv has
+// a row at that time and a stage column.
+TEST(RunOutput, StagesAreMarkedInTheOutput) {
+    const fs::path dir = fs::temp_directory_path() / "talus_stages_output";
+    auto s = talus::test::sim_from_text(staged_column(
+        "  - name: geostatic\n    duration: 3\n    damping: {type: local, coefficient: 0.8}\n"
+        "    until: {kinetic_energy_ratio: 1.0e-6}\n"
+        "  - {name: loaded, duration: 0.05, loads: [{box: {min: [0, 0.97], max: [0.2, 1.0]}, "
+        "traction: [0, -1000]}]}\n"));
+    talus::RunOptions opt;
+    opt.output_dir = dir;
+    opt.force = true;
+    std::ostringstream log;
+    talus::run_scenario(s->scenario, opt, log);
+    EXPECT_NE(log.str().find("stage 'geostatic' ended at"), std::string::npos) << log.str();
+    const auto stages = lines_of(dir / "stages.csv");
+    ASSERT_EQ(stages.size(), 3u);
+    EXPECT_EQ(stages[0], "stage,name,first_step,start_time,last_step,end_time,end,"
+                         "kinetic_energy_ratio,last_output");
+    auto field = [](const std::string &row, int k) {
+        std::stringstream ss(row);
+        std::string cell;
+        for (int i = 0; i <= k; ++i)
+            std::getline(ss, cell, ',');
+        return cell;
+    };
+    EXPECT_EQ(field(stages[1], 1), "geostatic");
+    EXPECT_EQ(field(stages[1], 6), "quiescent");
+    EXPECT_LT(std::stod(field(stages[1], 7)), 1e-6);
+    EXPECT_EQ(field(stages[2], 1), "loaded");
+    EXPECT_EQ(field(stages[2], 6), "duration");
+    // The second stage starts where the first ended.
+    EXPECT_EQ(std::stol(field(stages[2], 2)), std::stol(field(stages[1], 4)) + 1);
+    EXPECT_EQ(field(stages[2], 3), field(stages[1], 5));
+    const double end0 = std::stod(field(stages[1], 5));
+    EXPECT_LT(end0, 3.0);
+    // The file written at the first stage's end.
+    const fs::path vtu = dir / fmt::format("particles_{:05d}.vtu", std::stoi(field(stages[1], 8)));
+    std::ifstream in(vtu);
+    std::stringstream text;
+    text << in.rdbuf();
+    EXPECT_NE(text.str().find(fmt::format("Name=\"TimeValue\" NumberOfTuples=\"1\" "
+                                          "format=\"ascii\">{:.17g}<",
+                                          end0)),
+              std::string::npos);
+    EXPECT_NE(text.str().find("Name=\"Stage\" NumberOfTuples=\"1\" format=\"ascii\">0<"),
+              std::string::npos);
+    // diagnostics.csv: the stage column, and a row at the stage's end.
+    const auto diag = lines_of(dir / "diagnostics.csv");
+    EXPECT_EQ(diag[0].substr(diag[0].rfind(',') + 1), "stage");
+    const auto rows = talus::test::read_numeric_csv(dir / "diagnostics.csv");
+    bool at_end = false;
+    for (const auto &r : rows) {
+        EXPECT_EQ(r.back(), r[1] <= end0 ? 0.0 : 1.0) << "t = " << r[1];
+        at_end = at_end || r[1] == end0;
+    }
+    EXPECT_TRUE(at_end);
+    fs::remove_all(dir);
+}
+
+// A stage that must end at rest but runs out of time stops the run: a
+// located error naming the stage and the ratio reached, a non-zero exit
+// (the Error), and its last state in the output.
+TEST(RunOutput, AStageNotAtRestStopsTheRunWithItsStateWritten) {
+    const fs::path dir = fs::temp_directory_path() / "talus_stage_not_at_rest";
+    auto s = talus::test::sim_from_text(staged_column("  - name: geostatic\n    duration: 0.1\n"
+                                                      "    until: {kinetic_energy_ratio: 1.0e-6}\n"
+                                                      "  - {name: never, duration: 0.1}\n"));
+    talus::RunOptions opt;
+    opt.output_dir = dir;
+    opt.force = true;
+    std::ostringstream log;
+    try {
+        talus::run_scenario(s->scenario, opt, log);
+        FAIL() << "the run went on";
+    } catch (const talus::Error &e) {
+        const std::string m = e.what();
+        EXPECT_NE(m.find("test.yaml:14:12: error: 'stages[0].until'"), std::string::npos) << m;
+        EXPECT_NE(m.find("the state at the stage's end is in particles_00002.vtu and the last row "
+                         "of diagnostics.csv"),
+                  std::string::npos)
+            << m;
+        EXPECT_NE(m.find("stage 'geostatic' did not come to rest within its duration of 0.1 s"),
+                  std::string::npos)
+            << m;
+    }
+    const auto stages = lines_of(dir / "stages.csv");
+    ASSERT_EQ(stages.size(), 2u);
+    EXPECT_NE(stages[1].find(",duration_not_quiescent,"), std::string::npos);
+    EXPECT_EQ(talus::test::read_numeric_csv(dir / "diagnostics.csv").back()[1], 0.1);
+    fs::remove_all(dir);
 }

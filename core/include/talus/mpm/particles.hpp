@@ -81,6 +81,9 @@ struct ParticleSet {
     void resize(std::size_t count);
     // Moves particle `from` to slot `to` (compaction).
     void move(std::size_t from, std::size_t to);
+    // Copies particle p of `other` (a set of another material with the same
+    // columns in use) into slot q, all but its state.
+    void copy_point(ParticleSet &other, std::size_t p, std::size_t q);
     // Calls f(column, values per particle) for every column in use.
     template <class Fn>
     void for_each_column(Fn &&f);

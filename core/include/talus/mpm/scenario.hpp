@@ -166,6 +166,50 @@ struct OutputSpec {
     Origin every_origin;
 };
 
+// What acts on the body, and may change from one stage to the next. Its
+// functions of time are of the time since the stage began.
+struct Conditions {
+    std::array<FaceCondition, 6> faces; // x-, x+, y-, y+, z-, z+
+    Vec3 gravity{0, 0, 0};
+    // s; gravity changes linearly over it from the previous stage's (zero
+    // before the first) to `gravity`.
+    double gravity_ramp = 0.0;
+    DampingSpec damping;
+    std::vector<NodalVelocity> nodal_velocities;
+    std::vector<ParticleVelocity> particle_velocities;
+    std::vector<Load> loads;
+};
+
+// A stage ends early once the motion has died out (docs/theory.md,
+// "Stages"): the kinetic energy stays below `kinetic_energy_ratio` times the
+// strain energy estimate sum V sigma:sigma / (2 rho c^2) for `hold` seconds.
+struct Quiescence {
+    double kinetic_energy_ratio = 0.0;
+    std::optional<double> hold;  // s; default: 8 P-wave transits of the material (stage start)
+    bool stop_if_not_met = true; // false: go on to the next stage with a warning
+    Origin origin;
+};
+
+struct MaterialSwitch {
+    std::size_t group = 0, material = 0;
+};
+
+// One stage of an analysis: its conditions, complete (what the file does
+// not give for a stage is carried from the one before), how long it may
+// last, and what changes when it begins.
+struct StageSpec {
+    std::string name;
+    double duration = 0.0; // s
+    std::optional<Quiescence> until;
+    Conditions conditions;
+    std::vector<std::size_t> activate; // groups that appear at the stage start
+    std::vector<std::size_t> remove;   // groups taken out at the stage start
+    std::vector<MaterialSwitch> set_material;
+    bool reset_displacement = false; // x0 := x: displacements count from here
+    bool reset_velocity = false;     // v := 0 (and the affine matrices)
+    Origin origin;
+};
+
 struct Scenario {
     std::string file;
     int dim = 2;
@@ -173,18 +217,25 @@ struct Scenario {
     double cell = 0.0;
     std::vector<NamedMaterial> materials;
     std::vector<GroupSpec> groups;
-    std::array<FaceCondition, 6> faces; // x-, x+, y-, y+, z-, z+
-    Vec3 gravity{0, 0, 0};
-    double gravity_ramp = 0.0; // s; gravity grows linearly to full over it
-    DampingSpec damping;
-    std::vector<NodalVelocity> nodal_velocities;
-    std::vector<ParticleVelocity> particle_velocities;
-    std::vector<Load> loads;
+    // The conditions of a scenario without stages (and what its first stage
+    // starts from).
+    Conditions conditions;
     SolverSpec solver;
+    // Without stages, the end time; with stages, the sum of their durations
+    // (the latest the run can end).
     double end_time = 0.0;
+    // Empty: one stage, `conditions` until `end_time` (stages_of()).
+    std::vector<StageSpec> stages;
     OutputSpec output;
     Origin grid_origin, end_origin;
 };
+
+// The stages a run goes through: the scenario's, or the one stage a
+// scenario without `stages:` is.
+std::vector<StageSpec> stages_of(const Scenario &scenario);
+// The stage in which each group first appears (0 for those present from
+// the start).
+std::vector<std::size_t> first_stage_of_groups(const Scenario &scenario);
 
 // At most this many loads and particle_velocities entries (each particle
 // records its own in a 32-bit mask).

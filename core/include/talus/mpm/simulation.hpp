@@ -69,6 +69,9 @@ struct FailedCall {
     std::string message;   // the plugin's
 };
 
+// Whether the stage being run is over, and why.
+enum class StageEnd { running, duration, quiescent };
+
 class Simulation {
   public:
     // Generates the particles of every group and the initial state; calls
@@ -87,6 +90,29 @@ class Simulation {
 
     double time() const;
     long steps() const;
+
+    // Stages (Scenario::stages; a scenario without them is one stage).
+    const std::vector<StageSpec> &stages() const;
+    std::size_t stage() const;  // the one being run
+    double stage_start() const; // s
+    double stage_end() const;   // its start plus its duration, s
+    // Whether the stage has run its duration or (with `until`) has been
+    // quiescent for its hold time; step() keeps the test up to date.
+    StageEnd stage_end_reached() const;
+    // Begins the next stage at the current time: its conditions replace
+    // the current ones, its groups are removed, switched to their new
+    // material (whose plugin's set-up call sees their stress) and added,
+    // then displacements and velocities are reset as it says. Throws,
+    // located in the file, when a load or fixity selects no particle or a
+    // plugin refuses a point's state.
+    void begin_next_stage();
+    // Kinetic energy over the strain energy estimate sum V sigma:sigma /
+    // (2 rho c^2), from the current particles (0 at rest).
+    double kinetic_energy_ratio() const;
+    // The ratio after the last step, in a stage with `until` (NaN
+    // otherwise), and since when it has stayed below the stage's limit.
+    double last_kinetic_energy_ratio() const;
+    std::optional<double> quiet_since() const;
     double last_dt() const;
     // dt = cfl h / max(c_p + |v_p|) for the current state (seed 000 eq. 45).
     double critical_dt() const;
