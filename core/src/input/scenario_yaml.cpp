@@ -518,6 +518,26 @@ void read_stages(const yaml::Node &list, Scenario &s) {
                 (disp ? st.reset_displacement : st.reset_velocity) = true;
             }
         }
+        bool any = false;
+        for (std::size_t g = 0; g < G; ++g)
+            any = any || present(g);
+        if (!any) e.fail(fmt::format("no group is left in stage '{}': nothing to run", st.name));
+        const std::size_t up = static_cast<std::size_t>(s.dim - 1);
+        for (std::size_t g : st.activate)
+            if (s.groups[g].stress.kind == InitialStress::Kind::geostatic &&
+                !(st.conditions.gravity[up] < 0.0))
+                e.get("activate")
+                    .fail(fmt::format(
+                        "group '{}' has a geostatic initial stress, which needs gravity pointing "
+                        "down "
+                        "the last axis when it appears; stage '{}' has {:g} m/s^2 along {}",
+                        s.groups[g].name, st.name, st.conditions.gravity[up],
+                        s.dim == 2 ? "y" : "z"));
+        if (st.until && st.until->hold && *st.until->hold >= st.duration)
+            e.get("until").get("hold").fail(fmt::format(
+                "the hold time {:g} s is not shorter than the stage's duration {:g} s: the stage "
+                "could never end at rest",
+                *st.until->hold, st.duration));
         for (const Load &l : st.conditions.loads)
             if (l.group && !present(*l.group))
                 throw Error(l.origin.error(
