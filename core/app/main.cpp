@@ -24,7 +24,9 @@
 
 #include <csignal>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
+#include <optional>
 #include <sstream>
 #include <unistd.h>
 
@@ -144,9 +146,20 @@ int main(int argc, char **argv) {
     bool force = false;
     double progress_every = 10.0;
     int threads = 0;
-    run->add_option("scenario", scenario_file, "Scenario file (YAML)")
-        ->required()
-        ->type_name("SCENARIO.yaml");
+    std::string restart_file;
+    bool force_restart = false;
+    auto *scenario_option = run->add_option("scenario", scenario_file, "Scenario file (YAML)")
+                                ->type_name("SCENARIO.yaml");
+    auto *restart_option =
+        run->add_option("--restart", restart_file,
+                        "Continue the run of this checkpoint (OUT/checkpoints/checkpoint_N.h5) "
+                        "in its output folder OUT, with the scenario it stores")
+            ->type_name("CHECKPOINT.h5")
+            ->excludes(scenario_option);
+    run->add_flag("--force-restart", force_restart,
+                  "With --restart: continue even if Talus or a plugin differs from the "
+                  "checkpoint's")
+        ->needs(restart_option);
     run->add_option("--output-dir", output_dir,
                     "Where to write results (default: a folder named after the scenario, here)")
         ->type_name("DIR");
@@ -300,10 +313,38 @@ int main(int argc, char **argv) {
         };
 
         if (run->parsed()) {
-            wrong_file(scenario_file, YamlKind::scenario, "run");
-            const talus::yaml::Node root = talus::yaml::load_file(scenario_file);
+            if (scenario_file.empty() && restart_file.empty())
+                throw talus::Error("talus run: give a scenario (SCENARIO.yaml) or --restart "
+                                   "CHECKPOINT.h5");
+            // A restart reads the scenario the checkpoint stores, as its run
+            // read it (the file may have changed since), under the file's
+            // name, so that relative paths resolve as they did.
+            std::optional<talus::Checkpoint> checkpoint;
+            std::string text;
+            if (!restart_file.empty()) {
+                checkpoint = talus::read_checkpoint(restart_file);
+                scenario_file = checkpoint->scenario_path;
+                text = checkpoint->scenario_text;
+                if (output_dir.empty())
+                    output_dir = std::filesystem::absolute(restart_file)
+                                     .parent_path()
+                                     .parent_path()
+                                     .string();
+            } else {
+                wrong_file(scenario_file, YamlKind::scenario, "run");
+                std::ifstream in(scenario_file, std::ios::binary);
+                std::ostringstream ss;
+                ss << in.rdbuf();
+                text = ss.str();
+            }
+            const talus::yaml::Node root = checkpoint
+                                               ? talus::yaml::load_string(text, scenario_file)
+                                               : talus::yaml::load_file(scenario_file);
             talus::Scenario sc = talus::read_scenario(root, registry);
             talus::RunOptions ro;
+            ro.scenario_text = text;
+            ro.restart = checkpoint ? &*checkpoint : nullptr;
+            ro.force_restart = force_restart;
             ro.output_dir = output_dir;
             ro.force = force;
             ro.allow_large = allow_large;
@@ -518,6 +559,9 @@ int main(int argc, char **argv) {
             talus::print_report(std::cout, rep);
             return rep.passed() ? 0 : 1;
         }
+    } catch (const talus::Interrupted &e) {
+        std::cerr << e.what() << '\n';
+        return 128 + e.signal();
     } catch (const talus::Error &e) {
         std::cerr << e.what() << '\n';
         return 1;

@@ -2,6 +2,7 @@
 
 #include <talus/driver/point_driver.hpp>
 #include <talus/input/yaml_input.hpp>
+#include <talus/io/checkpoint.hpp>
 #include <talus/io/output_file.hpp>
 #include <talus/io/provenance.hpp>
 #include <talus/io/vtk_output.hpp>
@@ -13,12 +14,14 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdint>
 #include <cstdio>
 #include <fstream>
 #include <iterator>
 #include <limits>
 #include <ostream>
+#include <sstream>
 #include <unistd.h>
 
 namespace talus {
@@ -226,8 +229,10 @@ std::string fmt_time(double s) {
 // no row stands for a file that is not there.
 class RunOutput {
   public:
+    // With `resume`, continues the output of an interrupted run as it
+    // stood at its checkpoint.
     RunOutput(const fs::path &dir, const Scenario &sc, const Simulation &sim,
-              std::vector<std::int64_t> probe_ids)
+              std::vector<std::int64_t> probe_ids, const OutputProgress *resume = nullptr)
         : dir_(dir), sc_(sc), sim_(sim), probe_ids_(std::move(probe_ids)) {
         // State variables to write: those named in output.state, else every
         // one its plugin flags for output.
@@ -238,6 +243,10 @@ class RunOutput {
                     if (v.output() &&
                         std::find(fields_.begin(), fields_.end(), v.name) == fields_.end())
                         fields_.push_back(v.name);
+        if (resume) {
+            resume_from(*resume);
+            return;
+        }
         // First: what made this run, before any result exists.
         Provenance prov{"run", sc.file, {}};
         for (const auto &m : sc.materials)
@@ -278,6 +287,30 @@ class RunOutput {
     }
 
     int outputs() const { return outputs_; }
+
+    // Where the output stands, every row handed to the OS (for a
+    // checkpoint).
+    OutputProgress progress() {
+        OutputProgress o;
+        diag_.flush();
+        o.diagnostics_bytes = diag_.bytes();
+        if (prob_.is_open()) {
+            prob_.flush();
+            o.probes_bytes = prob_.bytes();
+        }
+        if (stages_.is_open()) {
+            stages_.flush();
+            o.stages_bytes = stages_.bytes();
+        }
+        o.next_output = outputs_;
+        o.last_written_step = last_written_step_;
+        o.stage_first_step = stage_first_step_;
+        for (const auto &f : pvd_)
+            o.frames.push_back(f.first);
+        o.probe_particles = probe_ids_;
+        return o;
+    }
+
     // Where the last output went, for messages.
     std::string last_written() const {
         return sc_.output.vtk
@@ -336,6 +369,34 @@ class RunOutput {
     }
 
   private:
+    // The files as they stood at the checkpoint: the CSV files cut back to
+    // its length, the VTK files written after it removed, the collection
+    // rewritten.
+    void resume_from(const OutputProgress &o) {
+        diag_ = OutputFile::resume(dir_ / "diagnostics.csv", o.diagnostics_bytes);
+        if (!sc_.output.probes.empty())
+            prob_ = OutputFile::resume(dir_ / "probes.csv", o.probes_bytes);
+        if (!sc_.stages.empty()) stages_ = OutputFile::resume(dir_ / "stages.csv", o.stages_bytes);
+        outputs_ = static_cast<int>(o.next_output);
+        last_written_step_ = o.last_written_step;
+        stage_first_step_ = o.stage_first_step;
+        for (std::size_t k = 0; k < o.frames.size(); ++k)
+            pvd_.emplace_back(o.frames[k], fmt::format("particles_{:05d}.vtu", k));
+        std::error_code ec;
+        for (const auto &e : fs::directory_iterator(dir_, ec)) {
+            const std::string name = e.path().filename().string();
+            int k = -1;
+            const bool later = std::sscanf(name.c_str(), "particles_%d.vtu", &k) == 1 &&
+                               k >= outputs_ && e.path().extension() == ".vtu";
+            const bool stale = name.rfind("failure_", 0) == 0 || name == "final_particles.csv" ||
+                               name == "failed_call.yaml";
+            if ((later || stale) && !fs::remove(e.path(), ec) && ec)
+                throw Error(fmt::format("{}: cannot remove a file written after the checkpoint: {}",
+                                        e.path().string(), ec.message()));
+        }
+        if (sc_.output.vtk) write_pvd(dir_ / "particles.pvd", pvd_);
+    }
+
     void rows() {
         const Diagnostics dg = sim_.diagnostics();
         diag_ << fmt::format("{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},"
@@ -525,6 +586,103 @@ void write_final_particles(const fs::path &file, const Simulation &sim, const st
 
 namespace {
 
+// SIGTERM and SIGINT (a scheduler's kill, Ctrl-C) only raise a flag: the
+// run finishes its step, writes a checkpoint and stops. A second signal
+// ends the process at once (SA_RESETHAND).
+volatile std::sig_atomic_t g_stop_signal = 0;
+extern "C" void on_stop_signal(int sig) { g_stop_signal = sig; }
+
+class StopSignals {
+  public:
+    StopSignals() {
+        g_stop_signal = 0;
+        struct sigaction sa {};
+        sa.sa_handler = on_stop_signal;
+        sa.sa_flags = SA_RESETHAND;
+        sigemptyset(&sa.sa_mask);
+        ::sigaction(SIGTERM, &sa, &old_term_);
+        ::sigaction(SIGINT, &sa, &old_int_);
+    }
+    ~StopSignals() {
+        ::sigaction(SIGTERM, &old_term_, nullptr);
+        ::sigaction(SIGINT, &old_int_, nullptr);
+    }
+    StopSignals(const StopSignals &) = delete;
+    StopSignals &operator=(const StopSignals &) = delete;
+
+  private:
+    struct sigaction old_term_ {
+    }, old_int_{};
+};
+
+std::string read_text(const fs::path &file) {
+    std::ifstream in(file, std::ios::binary);
+    if (!in) return {};
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+// Writes checkpoints/checkpoint_<step>.h5 and keeps the newest `keep`.
+class Checkpoints {
+  public:
+    Checkpoints(const fs::path &dir, const Scenario &sc, std::string text)
+        : dir_(dir / "checkpoints"), sc_(sc), text_(std::move(text)),
+          sha_(fs::exists(sc.file) ? sha256_file(sc.file) : std::string()),
+          plugins_(plugin_identities(sc)) {}
+
+    bool possible() const { return !text_.empty(); }
+
+    fs::path write(const Simulation &sim, RunOutput &out, long next_due, long particle_steps) {
+        if (!possible())
+            throw Error(fmt::format("{}: the scenario's text could not be read, so no checkpoint "
+                                    "can be written",
+                                    sc_.file));
+        std::error_code ec;
+        fs::create_directories(dir_, ec);
+        if (ec)
+            throw Error(fmt::format("{}: cannot create the checkpoint folder: {}", dir_.string(),
+                                    ec.message()));
+        Checkpoint c;
+        c.scenario_path = fs::absolute(sc_.file).string();
+        c.scenario_text = text_;
+        c.scenario_sha256 = sha_;
+        c.plugins = plugins_;
+        c.output = out.progress();
+        c.output.next_due = next_due;
+        c.output.particle_steps = particle_steps;
+        c.state = sim.snapshot();
+        const fs::path file = dir_ / fmt::format("checkpoint_{:010d}.h5", sim.steps());
+        write_checkpoint(file, c);
+        ++written_;
+        prune();
+        return file;
+    }
+    int written() const { return written_; }
+
+  private:
+    // The newest `keep` stay (by step, in the name).
+    void prune() {
+        std::vector<fs::path> all;
+        std::error_code ec;
+        for (const auto &e : fs::directory_iterator(dir_, ec))
+            if (e.path().filename().string().rfind("checkpoint_", 0) == 0 &&
+                e.path().extension() == ".h5")
+                all.push_back(e.path());
+        std::sort(all.begin(), all.end());
+        const std::size_t keep = static_cast<std::size_t>(sc_.checkpoint.keep);
+        for (std::size_t k = 0; k + keep < all.size(); ++k)
+            if (!fs::remove(all[k], ec) && ec)
+                throw Error(fmt::format("{}: cannot remove an old checkpoint: {}", all[k].string(),
+                                        ec.message()));
+    }
+    fs::path dir_;
+    const Scenario &sc_;
+    std::string text_, sha_;
+    std::vector<PluginIdentity> plugins_;
+    int written_ = 0;
+};
+
 void write_or_stop(RunOutput &out, const Simulation &sim) {
     try {
         out.write();
@@ -547,7 +705,27 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     // Refuse before any work: a previous run's files are never overwritten
     // silently.
     std::error_code ec;
-    if (fs::exists(dir, ec)) {
+    if (opt.restart) {
+        const std::vector<std::string> diff =
+            identity_differences(*opt.restart, plugin_identities(sc));
+        if (!diff.empty()) {
+            std::string all;
+            for (const std::string &d : diff)
+                all += "\n  " + d;
+            if (!opt.force_restart)
+                throw Error(fmt::format(
+                    "the checkpoint was written by other binaries than this run would use:{}\n"
+                    "the run was not continued: a result made by two builds is not one result; "
+                    "pass --force-restart to continue anyway",
+                    all));
+            log << fmt::format("talus: warning: continuing with other binaries than the "
+                               "checkpoint's (--force-restart):{}\n",
+                               all);
+        }
+        if (!fs::is_directory(dir))
+            throw Error(fmt::format("{}: no such folder: the checkpoint's run output is not there",
+                                    dir.string()));
+    } else if (fs::exists(dir, ec)) {
         if (!fs::is_directory(dir, ec))
             throw Error(fmt::format("{}: exists and is not a directory", dir.string()));
         std::vector<fs::path> previous;
@@ -563,7 +741,15 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
                     dir.string(), previous.front().filename().string(), previous.size() - 1));
         }
     }
-    Prepared prep = prepare_run(sc, opt.solver);
+    Prepared prep;
+    if (opt.restart) {
+        prep.sim = std::make_unique<Simulation>(sc, opt.solver, opt.restart->state);
+        prep.probe_particles = opt.restart->output.probe_particles;
+        prep.plan.steps = std::ceil(sc.end_time / std::max(prep.sim->critical_dt(), 1e-300));
+        prep.plan.first_dt = prep.sim->last_dt();
+    } else {
+        prep = prepare_run(sc, opt.solver);
+    }
     Simulation &sim = *prep.sim;
     for (const std::string &n : prep.plan.notes)
         log << n << '\n';
@@ -577,7 +763,12 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     }
 
     // Now the old files go: a run refused above leaves them as they were.
-    if (fs::exists(dir, ec))
+    if (!opt.restart && fs::exists(dir / "checkpoints", ec))
+        for (const auto &e : fs::directory_iterator(dir / "checkpoints", ec))
+            if (e.path().extension() == ".h5" && !fs::remove(e.path(), ec) && ec)
+                throw Error(fmt::format("{}: cannot remove the previous run's checkpoint: {}",
+                                        e.path().string(), ec.message()));
+    if (!opt.restart && fs::exists(dir, ec))
         for (const auto &e : fs::directory_iterator(dir, ec))
             if (is_own_file(e.path()) && !fs::remove(e.path(), ec) && ec)
                 throw Error(fmt::format("{}: cannot remove the previous run's file: {}",
@@ -587,7 +778,17 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
         throw Error(
             fmt::format("{}: cannot create the output folder: {}", dir.string(), ec.message()));
 
-    RunOutput out(dir, sc, sim, prep.probe_particles);
+    RunOutput out(dir, sc, sim, prep.probe_particles, opt.restart ? &opt.restart->output : nullptr);
+    Checkpoints checkpoints(dir, sc,
+                            opt.restart                 ? opt.restart->scenario_text
+                            : opt.scenario_text.empty() ? read_text(sc.file)
+                                                        : opt.scenario_text);
+    if (!checkpoints.possible() &&
+        (sc.checkpoint.every || sc.checkpoint.steps || sc.checkpoint.wall))
+        throw Error(fmt::format("{}: cannot read the scenario's text, which every checkpoint "
+                                "stores",
+                                sc.file));
+    const StopSignals stop_signals;
     crash::set_last_action(write_state_after_crash, &out);
     const ClearLastAction clear_on_exit;
 
@@ -596,22 +797,61 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     };
     double last_progress = -1.0;
-    long particle_steps = 0;
+    long particle_steps = opt.restart ? opt.restart->output.particle_steps : 0;
     std::size_t warnings_shown = 0;
-    out.write();
+    if (!opt.restart) out.write();
     const double end = sc.end_time;
-    if (opt.progress)
+    if (opt.progress && opt.restart)
+        log << fmt::format("talus: continuing from step {} (t = {:.6g} s, stage '{}'), {} "
+                           "particles\n",
+                           sim.steps(), sim.time(), sim.stages()[sim.stage()].name,
+                           sim.particle_count());
+    else if (opt.progress)
         log << fmt::format("talus: {} particles; about {:.3g} steps of {:.3g} s to t = {:g} s "
                            "(estimated from the initial state)\n",
                            sim.particle_count(), prep.plan.steps, prep.plan.first_dt, end);
+    // The rate is of this process's steps.
+    const long particle_steps_before = particle_steps;
+    const double time_before = sim.time();
     const double every = sc.output.every > 0.0 ? sc.output.every : end;
     // Output k is due at k * every; it is written after the first step that
     // reaches that time (the file and the CSV rows carry the actual time),
     // and the end of every stage is written too. Steps are never shortened
     // for an output, so the trajectory does not depend on the cadence; only
     // the last step of a stage is cut to end on its duration.
-    long next_k = 1;
+    long next_k = opt.restart ? opt.restart->output.next_due : 1;
     auto due = [&] { return static_cast<double>(next_k) * every; };
+    // Checkpoints: by steps, simulated time or wall-clock time, whichever
+    // comes first; none of them changes the trajectory.
+    const CheckpointSpec &ck = sc.checkpoint;
+    long next_ck = ck.every ? static_cast<long>(std::floor(sim.time() / *ck.every)) + 1 : 0;
+    double last_ck_wall = 0.0;
+    auto checkpoint_due = [&] {
+        bool now = ck.steps && sim.steps() % *ck.steps == 0;
+        if (ck.every && sim.time() >= static_cast<double>(next_ck) * *ck.every) {
+            now = true;
+            while (static_cast<double>(next_ck) * *ck.every <= sim.time())
+                ++next_ck;
+        }
+        if (ck.wall && elapsed() - last_ck_wall >= *ck.wall) now = true;
+        return now;
+    };
+    auto stop_if_signalled = [&] {
+        if (!g_stop_signal) return;
+        const int sig = g_stop_signal;
+        const char *name = sig == SIGTERM ? "SIGTERM" : sig == SIGINT ? "SIGINT" : "a signal";
+        if (!checkpoints.possible())
+            throw Interrupted(fmt::format("talus: stopped by {} at step {} (t = {:.6g} s); no "
+                                          "checkpoint could be written: {}",
+                                          name, sim.steps(), sim.time(),
+                                          "the scenario's text could not be read"),
+                              sig);
+        const fs::path file = checkpoints.write(sim, out, next_k, particle_steps);
+        throw Interrupted(fmt::format("talus: stopped by {} at step {} (t = {:.6g} s); the run "
+                                      "continues with: talus run --restart {}",
+                                      name, sim.steps(), sim.time(), file.string()),
+                          sig);
+    };
     for (;;) {
         const StageSpec &stage = sim.stages()[sim.stage()];
         StageEnd why = StageEnd::running;
@@ -633,13 +873,18 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
                 while (due() <= sim.time() + 1e-9 * sim.last_dt())
                     ++next_k;
             }
+            stop_if_signalled();
+            if (checkpoint_due()) {
+                checkpoints.write(sim, out, next_k, particle_steps);
+                last_ck_wall = elapsed();
+            }
             const double interval = opt.progress_tty ? 0.5 : opt.progress_interval;
             if (opt.progress && elapsed() - last_progress > interval) {
                 last_progress = elapsed();
-                const double rate =
-                    static_cast<double>(particle_steps) / std::max(last_progress, 1e-9);
+                const double rate = static_cast<double>(particle_steps - particle_steps_before) /
+                                    std::max(last_progress, 1e-9);
                 const double eta =
-                    last_progress * (end - sim.time()) / std::max(sim.time(), 1e-300);
+                    last_progress * (end - sim.time()) / std::max(sim.time() - time_before, 1e-300);
                 std::fprintf(stderr,
                              "%sstep %ld  t = %.4g / %.4g s  dt = %.3g s  elapsed %s  ETA %s  "
                              "%.3g particle-steps/s%s",
@@ -697,8 +942,10 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     rs.time = sim.time();
     rs.seconds = elapsed();
     rs.particles = sim.particle_count();
-    rs.particle_steps_per_second = static_cast<double>(particle_steps) / std::max(rs.seconds, 1e-9);
+    rs.particle_steps_per_second =
+        static_cast<double>(particle_steps - particle_steps_before) / std::max(rs.seconds, 1e-9);
     rs.outputs = out.outputs();
+    rs.checkpoints = checkpoints.written();
     rs.output_dir = dir;
     return rs;
 }

@@ -25,7 +25,7 @@ const std::vector<std::pair<std::string_view, Keys>> &schema() {
         {"",
          {"talus", "dimension", "plugins", "grid", "materials", "groups", "boundaries", "gravity",
           "damping", "nodal_velocities", "particle_velocities", "loads", "solver", "time", "stages",
-          "output"}},
+          "output", "checkpoint"}},
         {"grid", {"origin", "size", "cell"}},
         {"materials.*", {"model", "density", "initial_state"}},
         {"groups.*",
@@ -58,6 +58,7 @@ const std::vector<std::pair<std::string_view, Keys>> &schema() {
          {"name", "duration", "until", "boundaries", "gravity", "damping", "nodal_velocities",
           "particle_velocities", "loads", "activate", "remove", "set_material", "reset"}},
         {"stages[].until", {"kinetic_energy_ratio", "hold", "otherwise"}},
+        {"checkpoint", {"every", "steps", "wall", "keep"}},
         {"output", {"every", "vtk", "state", "probes"}},
         {"output.probes[]", {"name", "particle", "centre_of_mass"}},
     };
@@ -764,6 +765,25 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
         allow(time, "time");
         s.end_time = positive(time.require("end"), "end (s)");
         s.end_origin = origin_of(time.require("end"));
+    }
+
+    if (const yaml::Node ck = root.get("checkpoint"); ck.defined()) {
+        allow(ck, "checkpoint");
+        CheckpointSpec &c = s.checkpoint;
+        if (const yaml::Node n = ck.get("every"); n.defined()) c.every = positive(n, "every (s)");
+        if (const yaml::Node n = ck.get("steps"); n.defined()) {
+            c.steps = n.as_integer();
+            if (*c.steps < 1) n.fail(fmt::format("expected steps >= 1, got {}", *c.steps));
+        }
+        if (const yaml::Node n = ck.get("wall"); n.defined()) c.wall = positive(n, "wall (s)");
+        if (!c.every && !c.steps && !c.wall)
+            ck.fail("expected at least one of every (s of simulated time), steps, wall (s of "
+                    "wall-clock time)");
+        if (const yaml::Node n = ck.get("keep"); n.defined()) {
+            const long long k = n.as_integer();
+            if (k < 1 || k > 1000) n.fail(fmt::format("expected 1 <= keep <= 1000, got {}", k));
+            c.keep = static_cast<int>(k);
+        }
     }
 
     if (const yaml::Node out = root.get("output"); out.defined()) {

@@ -7,6 +7,7 @@
 #include <cerrno>
 #include <cstring>
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 namespace talus {
@@ -25,13 +26,31 @@ OutputFile::OutputFile(const fs::path &file, fs::path shown)
     if (fd_ < 0) fail("cannot create the file", errno);
 }
 
+OutputFile OutputFile::resume(const fs::path &file, std::uint64_t size) {
+    OutputFile f;
+    f.path_ = f.shown_ = file;
+    f.fd_ = ::open(file.c_str(), O_WRONLY | O_CLOEXEC);
+    if (f.fd_ < 0) f.fail("cannot reopen the file to continue it", errno);
+    struct stat st {};
+    if (::fstat(f.fd_, &st) != 0) f.fail("cannot read the file's size", errno);
+    if (static_cast<std::uint64_t>(st.st_size) < size)
+        throw Error(fmt::format("{}: holds {} bytes, fewer than the {} the checkpoint recorded: "
+                                "this is not the output the checkpoint belongs to",
+                                file.string(), st.st_size, size));
+    if (::ftruncate(f.fd_, static_cast<off_t>(size)) != 0 ||
+        ::lseek(f.fd_, static_cast<off_t>(size), SEEK_SET) < 0)
+        f.fail("cannot cut the file back to the checkpoint", errno);
+    f.written_ = size;
+    return f;
+}
+
 OutputFile::~OutputFile() {
     if (fd_ >= 0) ::close(fd_); // an abandoned file: its error was reported already
 }
 
 OutputFile::OutputFile(OutputFile &&o) noexcept
     : path_(std::move(o.path_)), shown_(std::move(o.shown_)), fd_(o.fd_),
-      buffer_(std::move(o.buffer_)) {
+      buffer_(std::move(o.buffer_)), written_(o.written_) {
     o.fd_ = -1;
 }
 
@@ -42,6 +61,7 @@ OutputFile &OutputFile::operator=(OutputFile &&o) noexcept {
         shown_ = std::move(o.shown_);
         fd_ = o.fd_;
         buffer_ = std::move(o.buffer_);
+        written_ = o.written_;
         o.fd_ = -1;
     }
     return *this;
@@ -80,6 +100,7 @@ void OutputFile::write_all(const char *p, std::size_t left) {
         }
         p += n;
         left -= static_cast<std::size_t>(n);
+        written_ += static_cast<std::uint64_t>(n);
     }
 }
 

@@ -100,6 +100,7 @@ class MaterialUpdate {
 
     // Plugin cut-step requests honoured by sub-stepping so far.
     long cut_steps() const { return cut_steps_; }
+    void set_cut_steps(long n) { cut_steps_ = n; } // a restored run's count
     // Seconds the threads spent in block() since the last call, divided by
     // the thread count (the phase's share of a pass it is fused into); also
     // adds up the threads' cut steps.

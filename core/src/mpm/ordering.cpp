@@ -40,6 +40,17 @@ void Ordering::invalidate() {
     slabs_changed_ = true;
 }
 
+void Ordering::restore(std::vector<std::vector<std::int32_t>> slab_of, double out_of_order,
+                       bool slabs_changed) {
+    slab_of_ = std::move(slab_of);
+    for (std::size_t si = 0; si < order_.size(); ++si) {
+        order_[si].clear(); // binned afresh from the restored marks
+        cell_of_[si].resize(slab_of_[si].size());
+    }
+    out_of_order_ = out_of_order;
+    slabs_changed_ = slabs_changed;
+}
+
 // Groups the particles of every set by slab (a counting sort of indices).
 void Ordering::bin(const std::vector<ParticleSet> &sets) {
     // Unchanged slabs give the same order: nothing to redo.

@@ -57,6 +57,13 @@ class Ordering {
     // Particles were removed or moved: slabs are recomputed at the next bin.
     void invalidate();
 
+    // What the next step's order depends on (Snapshot), and its restoring.
+    const std::vector<std::int32_t> &slabs(std::size_t si) const { return slab_of_[si]; }
+    double out_of_order() const { return out_of_order_; }
+    bool slabs_changed() const { return slabs_changed_; }
+    void restore(std::vector<std::vector<std::int32_t>> slab_of, double out_of_order,
+                 bool slabs_changed);
+
   private:
     static constexpr int kWidth = 4;
     void bin(const std::vector<ParticleSet> &sets);

@@ -113,12 +113,13 @@ Domain domain_of(const Scenario &sc, const Conditions &c) {
     return dom;
 }
 
-Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options)
+Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options, const Snapshot *restore)
     : sc(checked(scenario)), opt(options), stages(stages_of(sc)), first_id(first_ids(sc)),
       grid(sc.dim, sc.origin, sc.size, sc.cell, sc.solver.shape),
       boundary(sc, stages[0].conditions, grid, 0.0), instances(make_instances(sc)),
-      sets(initial_particles(sc, stages, first_id, instances)), order(grid.geo, sets.size()),
-      loads(sc, stages[0].conditions, Vec3{0, 0, 0}, 0.0),
+      sets(restore ? make_sets(sc, columns_of(sc.solver), instances)
+                   : initial_particles(sc, stages, first_id, instances)),
+      order(grid.geo, sets.size()), loads(sc, stages[0].conditions, Vec3{0, 0, 0}, 0.0),
       domain(domain_of(sc, stages[0].conditions)),
       materials(names_of(sc, sets), opt.batch_size, sc.cell), variant(variant_of(sc.solver)),
       isa(talus::kernel_isa()), velocity_motion(velocity_motion_of(sc.solver)) {
@@ -127,6 +128,10 @@ Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options)
     if (sc.solver.cell_averaged_dilation) {
         dilation.div.assign(grid.n_cells, 0.0);
         dilation.vol.assign(grid.n_cells, 0.0);
+    }
+    if (restore) {
+        restore_from(*restore);
+        return;
     }
     // The plugins see the initial state once (zero increment, so no stress
     // work) and report their wave speeds; a material that rejects its
@@ -142,7 +147,14 @@ Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options)
 
 Simulation::Simulation(const Scenario &scenario, SolverOptions options) {
     par::set_threads(options.threads);
-    impl_ = std::make_unique<Impl>(scenario, options);
+    impl_ = std::make_unique<Impl>(scenario, options, nullptr);
+}
+
+Simulation::Simulation(const Scenario &scenario, SolverOptions options, const Snapshot &snapshot) {
+    par::set_threads(options.threads);
+    options.batch_size = snapshot.batch_size;
+    options.sort_disorder = snapshot.sort_disorder;
+    impl_ = std::make_unique<Impl>(scenario, options, &snapshot);
 }
 
 Simulation::~Simulation() = default;

@@ -59,6 +59,7 @@ struct Simulation::Impl {
     std::vector<std::int64_t> first_id; // per group: the id of its first particle
     std::size_t stage = 0;
     double stage_start = 0.0;
+    Vec3 gravity_before{0, 0, 0}; // the current stage's gravity ramp starts there
     // The stage's quiescence test (Quiescence): its hold time, since when
     // the ratio has stayed below the limit, and its last value.
     std::optional<double> hold, below_since;
@@ -87,7 +88,10 @@ struct Simulation::Impl {
     std::optional<FailedCall> failed_call;
     std::array<double, Simulation::kPhases> phase_seconds{};
 
-    Impl(const Scenario &scenario, SolverOptions options);
+    // With `restore`, the state comes from it (no generation, no plugin
+    // call).
+    Impl(const Scenario &scenario, SolverOptions options, const Snapshot *restore);
+    void restore_from(const Snapshot &snap);
 
     // One step of each variant (schemes.cpp).
     void usl(double t, double dt);

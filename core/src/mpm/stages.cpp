@@ -72,7 +72,7 @@ void Simulation::Impl::switch_material(const MaterialSwitch &sw) {
 }
 
 void Simulation::Impl::begin_stage(std::size_t k) {
-    const Vec3 gravity_before = loads.gravity_at(time);
+    gravity_before = loads.gravity_at(time);
     stage = k;
     stage_start = time;
     const StageSpec &st = stages[k];

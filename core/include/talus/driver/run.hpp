@@ -4,6 +4,7 @@
 // collection, diagnostics.csv, probes.csv, progress lines).
 #pragma once
 
+#include <talus/io/checkpoint.hpp>
 #include <talus/mpm/simulation.hpp>
 
 #include <cstdint>
@@ -31,6 +32,26 @@ struct RunOptions {
     // scalar state variable of the materials, or one of kFinalFieldBuiltins).
     // Checked before the first step.
     std::string final_field;
+    // The scenario's text, stored in every checkpoint (empty: read from
+    // the scenario's file when the run starts).
+    std::string scenario_text;
+    // Continue this checkpoint's run in `output_dir`, which holds its
+    // output: the files written after the checkpoint are dropped and the
+    // run goes on from its state. Refused when Talus or a plugin differs
+    // from the checkpoint's, unless force_restart.
+    const Checkpoint *restart = nullptr;
+    bool force_restart = false;
+};
+
+// A run stopped by SIGTERM or SIGINT, after writing a checkpoint (the
+// message names it and the command that continues). Exit with 128 + signal.
+class Interrupted : public Error {
+  public:
+    Interrupted(const std::string &what, int signal) : Error(what), signal_(signal) {}
+    int signal() const { return signal_; }
+
+  private:
+    int signal_;
 };
 
 // Fields every particle has, for RunOptions::final_field: mean stress p and
@@ -85,6 +106,7 @@ struct RunSummary {
     std::size_t particles = 0;
     double particle_steps_per_second = 0.0;
     int outputs = 0;
+    int checkpoints = 0;
     std::filesystem::path output_dir;
 };
 

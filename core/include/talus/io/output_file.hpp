@@ -4,6 +4,7 @@
 // under the final name.
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
 #include <string>
 #include <string_view>
@@ -19,6 +20,10 @@ class OutputFile {
     // Creates or truncates `file`; messages name `shown` when given (the
     // final name of a temporary).
     explicit OutputFile(const std::filesystem::path &file, std::filesystem::path shown = {});
+    // Reopens a file a run had written for appending, cut back to its first
+    // `size` bytes (a restart drops what came after its checkpoint). Throws
+    // if the file is missing or shorter.
+    static OutputFile resume(const std::filesystem::path &file, std::uint64_t size);
     ~OutputFile();
     OutputFile(OutputFile &&other) noexcept;
     OutputFile &operator=(OutputFile &&other) noexcept;
@@ -34,6 +39,8 @@ class OutputFile {
     }
     // Hands the buffered bytes to the OS (a complete row becomes visible).
     void flush();
+    // Bytes written so far (handed to the OS or still buffered).
+    std::uint64_t bytes() const { return written_ + buffer_.size(); }
     // Flushes and closes; a failure to close is a failed write (NFS, quota).
     void close();
 
@@ -43,6 +50,7 @@ class OutputFile {
     std::filesystem::path path_, shown_;
     int fd_ = -1;
     std::string buffer_;
+    std::uint64_t written_ = 0;
 };
 
 // A file that appears under its name only once it is complete: written to a

@@ -87,6 +87,10 @@ struct ParticleSet {
     // Calls f(column, values per particle) for every column in use.
     template <class Fn>
     void for_each_column(Fn &&f);
+    // The same, as f(name, column, values per particle): the names a
+    // checkpoint stores the columns under.
+    template <class Fn>
+    void for_each_named_column(Fn &&f);
     // Bytes per particle of the columns in use.
     std::size_t bytes_per_particle();
 
@@ -99,30 +103,39 @@ struct ParticleSet {
 };
 
 template <class Fn>
-void ParticleSet::for_each_column(Fn &&f) {
-    f(id, 1);
-    f(group, 1);
+void ParticleSet::for_each_named_column(Fn &&f) {
+    static constexpr const char *axis[3] = {"x", "y", "z"};
+    static constexpr const char *start[3] = {"x0_x", "x0_y", "x0_z"};
+    static constexpr const char *vel[3] = {"v_x", "v_y", "v_z"};
+    static constexpr const char *step[3] = {"dx_x", "dx_y", "dx_z"};
+    f("id", id, 1);
+    f("group", group, 1);
     for (int d = 0; d < dim; ++d) {
         const std::size_t dd = static_cast<std::size_t>(d);
-        f(x[dd], 1);
-        f(x0[dd], 1);
-        f(v[dd], 1);
-        if (has_dx) f(dx[dd], 1);
+        f(axis[dd], x[dd], 1);
+        f(start[dd], x0[dd], 1);
+        f(vel[dd], v[dd], 1);
+        if (has_dx) f(step[dd], dx[dd], 1);
     }
-    f(mass, 1);
-    f(vol0, 1);
-    if (has_lp) f(lp, 1);
-    f(F, 9);
-    f(J, 1);
-    f(stress, 6);
-    if (state_size > 0) f(state, state_size);
-    f(c, 1);
-    if (has_L) f(L, 9);
-    if (has_C) f(C, 9);
-    f(work, 1);
-    if (has_divv) f(divv, 1);
-    f(load_mask, 1);
-    f(fix_mask, 1);
+    f("mass", mass, 1);
+    f("vol0", vol0, 1);
+    if (has_lp) f("lp", lp, 1);
+    f("F", F, 9);
+    f("J", J, 1);
+    f("stress", stress, 6);
+    if (state_size > 0) f("state", state, state_size);
+    f("c", c, 1);
+    if (has_L) f("L", L, 9);
+    if (has_C) f("C", C, 9);
+    f("work", work, 1);
+    if (has_divv) f("divv", divv, 1);
+    f("load_mask", load_mask, 1);
+    f("fix_mask", fix_mask, 1);
+}
+
+template <class Fn>
+void ParticleSet::for_each_column(Fn &&f) {
+    for_each_named_column([&](const char *, auto &col, std::size_t stride) { f(col, stride); });
 }
 
 } // namespace talus

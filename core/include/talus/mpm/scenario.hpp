@@ -210,6 +210,15 @@ struct StageSpec {
     Origin origin;
 };
 
+// When a run writes a checkpoint (docs/restart.md); on SIGTERM and SIGINT
+// it always does.
+struct CheckpointSpec {
+    std::optional<double> every; // s of simulated time
+    std::optional<long> steps;   // every this many steps
+    std::optional<double> wall;  // s of wall-clock time
+    int keep = 2;                // the newest this many are kept
+};
+
 struct Scenario {
     std::string file;
     int dim = 2;
@@ -227,6 +236,7 @@ struct Scenario {
     // Empty: one stage, `conditions` until `end_time` (stages_of()).
     std::vector<StageSpec> stages;
     OutputSpec output;
+    CheckpointSpec checkpoint;
     Origin grid_origin, end_origin;
 };
 

@@ -5,6 +5,7 @@
 
 #include <talus/mpm/particles.hpp>
 #include <talus/mpm/scenario.hpp>
+#include <talus/mpm/snapshot.hpp>
 
 #include <array>
 #include <cstdint>
@@ -78,6 +79,11 @@ class Simulation {
     // each plugin once on the initial state to get wave speeds. The scenario
     // is read, never changed, and must outlive the simulation.
     Simulation(const Scenario &scenario, SolverOptions options = {});
+    // Continues from a snapshot of a simulation of the same scenario (its
+    // batch size and sort threshold replace those in `options`): no
+    // particle is generated and no plugin called. Throws when the
+    // snapshot's sets or columns do not fit the scenario.
+    Simulation(const Scenario &scenario, SolverOptions options, const Snapshot &snapshot);
     ~Simulation();
     Simulation(const Simulation &) = delete;
     Simulation &operator=(const Simulation &) = delete;
@@ -90,6 +96,9 @@ class Simulation {
 
     double time() const;
     long steps() const;
+    // Everything needed to continue from here (restore with the
+    // constructor above).
+    Snapshot snapshot() const;
 
     // Stages (Scenario::stages; a scenario without them is one stage).
     const std::vector<StageSpec> &stages() const;

@@ -1,0 +1,73 @@
+// Checkpoints: a run's complete state in one HDF5 file (docs/restart.md),
+// from which `talus run --restart FILE` continues bit for bit. HDF5 because
+// a user can look inside with the common tools (h5dump, h5ls, h5py,
+// ParaView) and every array keeps its name, type and shape; the library is
+// Debian's libhdf5-dev.
+//
+// A checkpoint holds the scenario as it was read (its text, path and
+// SHA-256), the identity of Talus and of every plugin in use (path,
+// library and model versions, content SHA-256), the solver's state
+// (Snapshot: particle arrays with every plugin's state, the ordering, the
+// counters, the stage), and where the output stood (the next file number,
+// the length of each CSV file, the probes' particles), so that the
+// restarted run writes exactly what the uninterrupted one would have.
+#pragma once
+
+#include <talus/mpm/scenario.hpp>
+#include <talus/mpm/snapshot.hpp>
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace talus {
+
+struct PluginIdentity {
+    std::string material;     // the scenario's name for the material
+    std::string qualified_id; // library/model
+    std::string path;         // the plugin file
+    std::string library_version, model_version, sha256;
+    int abi_major = 0, abi_minor = 0;
+};
+
+// Where the run's output stood at the checkpoint.
+struct OutputProgress {
+    long next_output = 0;        // the number of the next VTK file
+    long next_due = 1;           // the next output time is next_due * output.every
+    long last_written_step = -1; // the step of the last output
+    long stage_first_step = 1;   // the first step of the current stage
+    std::vector<double> frames;  // the times of the VTK files written (the .pvd)
+    std::vector<std::int64_t> probe_particles;
+    std::uint64_t diagnostics_bytes = 0, probes_bytes = 0, stages_bytes = 0;
+    long particle_steps = 0;
+};
+
+struct Checkpoint {
+    // Of the Talus that wrote it (write_checkpoint stamps its own).
+    std::string talus_version;
+    int abi_major = 0, abi_minor = 0;
+    std::string scenario_path, scenario_text, scenario_sha256;
+    std::vector<PluginIdentity> plugins;
+    OutputProgress output;
+    Snapshot state;
+};
+
+// The identity of every material's plugin as loaded now.
+std::vector<PluginIdentity> plugin_identities(const Scenario &scenario);
+
+// What differs between the checkpoint's Talus and plugins and those of this
+// run, one line each (empty: the same binaries).
+std::vector<std::string> identity_differences(const Checkpoint &checkpoint,
+                                              const std::vector<PluginIdentity> &now);
+
+// Writes the checkpoint to `file` atomically (a temporary, synced, renamed
+// over it, the folder synced): a kill at any moment leaves either the old
+// file or the complete new one. Throws talus::Error naming the file.
+void write_checkpoint(const std::filesystem::path &file, const Checkpoint &checkpoint);
+
+// Reads a checkpoint; throws talus::Error naming the file and what is
+// missing or wrong (not a checkpoint, a newer format, a damaged array).
+Checkpoint read_checkpoint(const std::filesystem::path &file);
+
+} // namespace talus

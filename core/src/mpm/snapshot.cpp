@@ -1,0 +1,134 @@
+// Snapshot and restore: the state a run continues from (talus/mpm/snapshot.hpp).
+#include "simulation_state.hpp"
+
+#include <fmt/format.h>
+
+#include <cstring>
+#include <type_traits>
+
+namespace talus {
+
+namespace {
+
+template <class T>
+constexpr Snapshot::Type type_of() {
+    if constexpr (std::is_same_v<T, double>)
+        return Snapshot::Type::f64;
+    else if constexpr (std::is_same_v<T, std::int64_t>)
+        return Snapshot::Type::i64;
+    else if constexpr (std::is_same_v<T, std::int32_t>)
+        return Snapshot::Type::i32;
+    else {
+        static_assert(std::is_same_v<T, std::uint32_t>);
+        return Snapshot::Type::u32;
+    }
+}
+
+} // namespace
+
+Snapshot Simulation::snapshot() const {
+    const Impl &g = *impl_;
+    Snapshot s;
+    s.step = g.step;
+    s.time = g.time;
+    s.last_dt = g.last_dt;
+    s.max_speed = g.max_speed;
+    s.removed = g.removed;
+    s.held_at_faces = g.held_at_faces;
+    s.held_depth = g.held_depth;
+    s.cut_steps = g.materials.cut_steps();
+    s.warned_dt = g.warned_dt;
+    s.stage = g.stage;
+    s.stage_start = g.stage_start;
+    s.gravity_before = g.gravity_before;
+    s.hold = g.hold;
+    s.below_since = g.below_since;
+    s.ratio = g.ratio;
+    s.out_of_order = g.order.out_of_order();
+    s.slabs_changed = g.order.slabs_changed();
+    s.batch_size = g.opt.batch_size;
+    s.sort_disorder = g.opt.sort_disorder;
+    for (std::size_t si = 0; si < g.sets.size(); ++si) {
+        // for_each_named_column walks a mutable set; nothing is changed.
+        auto &set = const_cast<ParticleSet &>(g.sets[si]);
+        Snapshot::Set out;
+        out.material = set.material;
+        out.n = set.n;
+        set.for_each_named_column([&](const char *name, auto &col, std::size_t stride) {
+            using T = typename std::decay_t<decltype(col)>::value_type;
+            Snapshot::Column c{name, type_of<T>(), stride, {}};
+            c.bytes.resize(set.n * stride * sizeof(T));
+            if (!c.bytes.empty()) std::memcpy(c.bytes.data(), col.data(), c.bytes.size());
+            out.columns.push_back(std::move(c));
+        });
+        out.slab_of = g.order.slabs(si);
+        s.sets.push_back(std::move(out));
+    }
+    return s;
+}
+
+void Simulation::Impl::restore_from(const Snapshot &snap) {
+    if (snap.sets.size() != sets.size())
+        throw Error(fmt::format("the snapshot holds {} particle sets, the scenario makes {}",
+                                snap.sets.size(), sets.size()));
+    if (snap.stage >= stages.size())
+        throw Error(fmt::format("the snapshot is in stage {}, the scenario has {}", snap.stage + 1,
+                                stages.size()));
+    std::vector<std::vector<std::int32_t>> slabs;
+    for (std::size_t si = 0; si < sets.size(); ++si) {
+        ParticleSet &set = sets[si];
+        const Snapshot::Set &in = snap.sets[si];
+        if (in.material != set.material)
+            throw Error(fmt::format("the snapshot's particle set {} is of material {}, the "
+                                    "scenario's of material {}",
+                                    si, in.material, set.material));
+        set.resize(in.n);
+        std::size_t k = 0;
+        set.for_each_named_column([&](const char *name, auto &col, std::size_t stride) {
+            using T = typename std::decay_t<decltype(col)>::value_type;
+            if (k >= in.columns.size() || in.columns[k].name != name ||
+                in.columns[k].type != type_of<T>() || in.columns[k].stride != stride ||
+                in.columns[k].bytes.size() != in.n * stride * sizeof(T))
+                throw Error(fmt::format(
+                    "the snapshot's particle set {} does not have the column '{}' the scenario "
+                    "needs (of {} values per particle){}",
+                    si, name, stride,
+                    k < in.columns.size() ? fmt::format("; it has '{}' there", in.columns[k].name)
+                                          : std::string()));
+            if (in.n > 0)
+                std::memcpy(col.data(), in.columns[k].bytes.data(), in.columns[k].bytes.size());
+            ++k;
+        });
+        if (k != in.columns.size())
+            throw Error(fmt::format("the snapshot's particle set {} has {} columns, the scenario "
+                                    "needs {}",
+                                    si, in.columns.size(), k));
+        if (!in.slab_of.empty() && in.slab_of.size() != in.n)
+            throw Error(fmt::format("the snapshot's particle set {} has {} ordering marks for {} "
+                                    "particles",
+                                    si, in.slab_of.size(), in.n));
+        slabs.push_back(in.slab_of);
+    }
+    step = snap.step;
+    time = snap.time;
+    last_dt = snap.last_dt;
+    max_speed = snap.max_speed;
+    removed = snap.removed;
+    held_at_faces = snap.held_at_faces;
+    held_depth = snap.held_depth;
+    materials.set_cut_steps(snap.cut_steps);
+    warned_dt = snap.warned_dt;
+    stage = snap.stage;
+    stage_start = snap.stage_start;
+    gravity_before = snap.gravity_before;
+    const StageSpec &st = stages[stage];
+    boundary = Boundary(sc, st.conditions, grid, stage_start);
+    loads = Loads(sc, st.conditions, gravity_before, stage_start);
+    domain = domain_of(sc, st.conditions);
+    hold = snap.hold;
+    below_since = snap.below_since;
+    ratio = snap.ratio;
+    order.restore(std::move(slabs), snap.out_of_order, snap.slabs_changed);
+}
+
+} // namespace talus

@@ -1,0 +1,144 @@
+// Checkpoints: a snapshot through an HDF5 file and back continues a run bit
+// for bit, across a stage change and a material switch; a checkpoint of
+// other binaries is refused, naming the difference; a file that is not a
+// checkpoint is refused.
+#include "solver_helpers.hpp"
+
+#include <talus/driver/run.hpp>
+#include <talus/io/checkpoint.hpp>
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// A Mohr-Coulomb block (plugin state) settling under gravity, then
+// weakened: a stage change and a material switch within the run.
+const std::string kScenario =
+    "talus: 1\ndimension: 2\ngrid: {origin: [0, 0], size: [1, 0.6], cell: 0.05}\n"
+    "materials:\n"
+    "  soil: {model: mohr_coulomb, density: 2000, youngs_modulus: 1.0e7, poisson_ratio: 0.3, "
+    "friction_angle: 35, dilation_angle: 0, cohesion: 5.0e3}\n"
+    "  weak: {model: mohr_coulomb, density: 2000, youngs_modulus: 1.0e7, poisson_ratio: 0.3, "
+    "friction_angle: 15, dilation_angle: 0, cohesion: 100}\n"
+    "groups:\n  block: {material: soil, shape: {box: {min: [0.1, 0], max: [0.5, 0.4]}}, "
+    "initial_stress: {geostatic: {k0: 0.5}}}\n"
+    "boundaries: {y-: {friction: 0.5}}\ngravity: [0, -9.81]\n"
+    "stages:\n  - {name: settle, duration: 0.02, damping: {type: local, coefficient: 0.7}}\n"
+    "  - {name: weak, duration: 0.05, set_material: {block: weak}}\n";
+
+// Runs to the end, changing stage when one ends.
+void finish(talus::Simulation &sim) {
+    for (;;) {
+        while (sim.stage_end_reached() == talus::StageEnd::running)
+            sim.step(sim.stage_end() - sim.time());
+        if (sim.stage() + 1 == sim.stages().size()) return;
+        sim.begin_next_stage();
+    }
+}
+
+void expect_same_particles(const talus::Simulation &a, const talus::Simulation &b) {
+    ASSERT_EQ(a.steps(), b.steps());
+    EXPECT_EQ(a.time(), b.time());
+    ASSERT_EQ(a.sets().size(), b.sets().size());
+    for (std::size_t k = 0; k < a.sets().size(); ++k) {
+        const talus::ParticleSet &p = a.sets()[k], &q = b.sets()[k];
+        ASSERT_EQ(p.n, q.n);
+        EXPECT_TRUE(p.id == q.id);
+        EXPECT_TRUE(p.x[0] == q.x[0] && p.x[1] == q.x[1]);
+        EXPECT_TRUE(p.v[0] == q.v[0] && p.v[1] == q.v[1]);
+        EXPECT_TRUE(p.stress == q.stress);
+        EXPECT_TRUE(p.state == q.state);
+        EXPECT_TRUE(p.F == q.F);
+    }
+}
+
+} // namespace
+
+// Checkpoints taken in the first stage and in the second, written and read
+// back, continue to the state of the run never interrupted, bit for bit.
+TEST(Checkpoint, AFileWrittenAndReadContinuesTheRunBitForBit) {
+    const fs::path dir = fs::temp_directory_path() / "talus_checkpoint_test";
+    fs::create_directories(dir);
+    auto whole = talus::test::sim_from_text(kScenario);
+    finish(*whole->sim);
+    for (const long at : {40L, 200L}) {
+        auto first = talus::test::sim_from_text(kScenario);
+        talus::Simulation &sim = *first->sim;
+        for (;;) {
+            while (sim.steps() < at && sim.stage_end_reached() == talus::StageEnd::running)
+                sim.step(sim.stage_end() - sim.time());
+            if (sim.steps() == at) break;
+            sim.begin_next_stage();
+        }
+        talus::Checkpoint c;
+        c.scenario_text = kScenario;
+        c.state = sim.snapshot();
+        c.plugins = talus::plugin_identities(first->scenario);
+        const fs::path file = dir / "c.h5";
+        talus::write_checkpoint(file, c);
+        const talus::Checkpoint back = talus::read_checkpoint(file);
+        EXPECT_EQ(back.scenario_text, kScenario);
+        EXPECT_TRUE(
+            talus::identity_differences(back, talus::plugin_identities(first->scenario)).empty());
+        auto second = talus::test::sim_from_text(kScenario);
+        talus::Simulation resumed(second->scenario, {}, back.state);
+        EXPECT_EQ(resumed.stage(), at == 40 ? 0u : 1u);
+        finish(resumed);
+        expect_same_particles(*whole->sim, resumed);
+    }
+    fs::remove_all(dir);
+}
+
+// A plugin file that changed since the checkpoint is named with the
+// change, and the restart is refused unless forced.
+TEST(Checkpoint, OtherPluginBinariesAreRefusedNamingTheDifference) {
+    auto s = talus::test::sim_from_text(kScenario);
+    talus::Checkpoint written;
+    written.scenario_text = kScenario;
+    written.plugins = talus::plugin_identities(s->scenario);
+    written.state = s->sim->snapshot();
+    const fs::path file = fs::temp_directory_path() / "talus_checkpoint_identity.h5";
+    talus::write_checkpoint(file, written);
+    talus::Checkpoint c = talus::read_checkpoint(file); // stamped with this Talus
+    fs::remove(file);
+    c.plugins[1].sha256 = "0123";
+    c.plugins[0].library_version = "0.9.0";
+    const auto diff = talus::identity_differences(c, talus::plugin_identities(s->scenario));
+    ASSERT_EQ(diff.size(), 2u);
+    EXPECT_NE(diff[0].find("material 'soil': the library version was 0.9.0, is now"),
+              std::string::npos)
+        << diff[0];
+    EXPECT_NE(diff[1].find("material 'weak': the plugin's SHA-256 was 0123, is now "),
+              std::string::npos)
+        << diff[1];
+    talus::RunOptions opt;
+    opt.restart = &c;
+    opt.output_dir = fs::temp_directory_path();
+    std::ostringstream log;
+    try {
+        talus::run_scenario(s->scenario, opt, log);
+        FAIL() << "a checkpoint of other binaries was continued";
+    } catch (const talus::Error &e) {
+        const std::string m = e.what();
+        EXPECT_NE(m.find("the checkpoint was written by other binaries"), std::string::npos) << m;
+        EXPECT_NE(m.find("pass --force-restart"), std::string::npos) << m;
+    }
+}
+
+TEST(Checkpoint, AFileThatIsNotACheckpointIsRefused) {
+    const fs::path file = fs::temp_directory_path() / "talus_not_a_checkpoint.h5";
+    std::ofstream(file) << "talus: 1\n";
+    try {
+        talus::read_checkpoint(file);
+        FAIL();
+    } catch (const talus::Error &e) {
+        EXPECT_NE(std::string(e.what()).find("not an HDF5 file"), std::string::npos) << e.what();
+    }
+    fs::remove(file);
+}
