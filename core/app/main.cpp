@@ -332,14 +332,10 @@ int main(int argc, char **argv) {
                                      .string();
             } else {
                 wrong_file(scenario_file, YamlKind::scenario, "run");
-                std::ifstream in(scenario_file, std::ios::binary);
-                std::ostringstream ss;
-                ss << in.rdbuf();
-                text = ss.str();
+                text = talus::yaml::read_text_file(scenario_file);
             }
-            const talus::yaml::Node root = checkpoint
-                                               ? talus::yaml::load_string(text, scenario_file)
-                                               : talus::yaml::load_file(scenario_file);
+            // One text is parsed and stored in the checkpoints.
+            const talus::yaml::Node root = talus::yaml::load_string(text, scenario_file);
             talus::Scenario sc = talus::read_scenario(root, registry);
             talus::RunOptions ro;
             ro.scenario_text = text;
@@ -365,9 +361,11 @@ int main(int argc, char **argv) {
             const talus::RunSummary rs = talus::run_scenario(sc, ro, std::cerr);
             std::cerr << fmt::format(
                 "talus: {} steps to t = {:.6g} s, {} particles, {:.1f} s wall, {:.3g} "
-                "particle-steps/s; {} output(s) in {}\n",
+                "particle-steps/s; {} output(s){} in {}\n",
                 rs.steps, rs.time, rs.particles, rs.seconds, rs.particle_steps_per_second,
-                rs.outputs, rs.output_dir.string());
+                rs.outputs,
+                rs.checkpoints > 0 ? fmt::format(" and {} checkpoint(s)", rs.checkpoints) : "",
+                rs.output_dir.string());
             if (!run_plot.empty()) {
                 talus::plot_final_particles(
                     rs.output_dir / "final_particles.csv", run_plot,

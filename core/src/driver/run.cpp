@@ -21,7 +21,6 @@
 #include <iterator>
 #include <limits>
 #include <ostream>
-#include <sstream>
 #include <unistd.h>
 
 namespace talus {
@@ -615,12 +614,13 @@ class StopSignals {
     }, old_int_{};
 };
 
-std::string read_text(const fs::path &file) {
-    std::ifstream in(file, std::ios::binary);
-    if (!in) return {};
-    std::ostringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
+// The scenario's text, for the checkpoints; empty if it cannot be read.
+std::string scenario_text_of(const Scenario &sc) {
+    try {
+        return yaml::read_text_file(sc.file);
+    } catch (const Error &) {
+        return {};
+    }
 }
 
 // Writes checkpoints/checkpoint_<step>.h5 and keeps the newest `keep`.
@@ -745,8 +745,6 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     if (opt.restart) {
         prep.sim = std::make_unique<Simulation>(sc, opt.solver, opt.restart->state);
         prep.probe_particles = opt.restart->output.probe_particles;
-        prep.plan.steps = std::ceil(sc.end_time / std::max(prep.sim->critical_dt(), 1e-300));
-        prep.plan.first_dt = prep.sim->last_dt();
     } else {
         prep = prepare_run(sc, opt.solver);
     }
@@ -781,7 +779,7 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     RunOutput out(dir, sc, sim, prep.probe_particles, opt.restart ? &opt.restart->output : nullptr);
     Checkpoints checkpoints(dir, sc,
                             opt.restart                 ? opt.restart->scenario_text
-                            : opt.scenario_text.empty() ? read_text(sc.file)
+                            : opt.scenario_text.empty() ? scenario_text_of(sc)
                                                         : opt.scenario_text);
     if (!checkpoints.possible() &&
         (sc.checkpoint.every || sc.checkpoint.steps || sc.checkpoint.wall))

@@ -366,13 +366,6 @@ void read_conditions(const yaml::Node &m, const std::string &prefix, const Scena
     }
 }
 
-// A group's life through the stages, for the checks of each stage's
-// changes: present from the start, or appearing at the stage that
-// activates it, until the one that removes it.
-struct GroupLife {
-    std::vector<std::size_t> appears, removed; // stage index; removed: SIZE_MAX if never
-};
-
 std::vector<std::size_t> group_list(const yaml::Node &n, const Scenario &s) {
     n.expect_sequence();
     std::vector<std::size_t> out;

@@ -151,12 +151,14 @@ Node load_string(const std::string &text, const std::string &name) {
     }
 }
 
-Node load_file(const std::string &path) {
-    std::ifstream in(path);
+std::string read_text_file(const std::string &path) {
+    std::ifstream in(path, std::ios::binary);
     if (!in) throw Error(fmt::format("{}: error: cannot open file", path));
     std::ostringstream ss;
     ss << in.rdbuf();
-    return load_string(ss.str(), path);
+    return ss.str();
 }
+
+Node load_file(const std::string &path) { return load_string(read_text_file(path), path); }
 
 } // namespace talus::yaml

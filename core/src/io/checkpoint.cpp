@@ -38,6 +38,7 @@ class Handle {
     ~Handle() {
         if (id_ >= 0) close_(id_);
     }
+    Handle(Handle &&o) noexcept : id_(o.id_), close_(o.close_) { o.id_ = -1; }
     Handle(const Handle &) = delete;
     Handle &operator=(const Handle &) = delete;
     hid_t get() const { return id_; }
@@ -71,47 +72,55 @@ class H5 {
         if (r < 0) fail(fmt::format("{} '{}' failed", what, name));
     }
 
-    // ---- writing
-    void attr_string(hid_t at, const std::string &name, const std::string &value) const {
-        Handle type(check(H5Tcopy(H5T_C_S1), "string type"), H5Tclose);
-        check(H5Tset_size(type.get(), std::max<std::size_t>(value.size(), 1)), "sizing string",
-              name);
+    // ---- text: short text (names, versions, hashes) as attributes, which
+    // `h5dump -A` shows; text of any length (the scenario) as a dataset (an
+    // attribute holds 64 kB at most).
+    enum class As { attribute, dataset };
+    void write_text(hid_t at, const std::string &name, const std::string &value, As as) const {
+        const Handle type = string_type(std::max<std::size_t>(value.size(), 1), name);
         Handle space(check(H5Screate(H5S_SCALAR), "dataspace"), H5Sclose);
-        Handle a(
-            check(H5Acreate2(at, name.c_str(), type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT),
-                  "cannot create the attribute " + name),
-            H5Aclose);
         const std::string padded = value.empty() ? std::string(1, '\0') : value;
-        check(H5Awrite(a.get(), type.get(), padded.data()), "writing the attribute", name);
+        if (as == As::attribute) {
+            Handle a(check(H5Acreate2(at, name.c_str(), type.get(), space.get(), H5P_DEFAULT,
+                                      H5P_DEFAULT),
+                           "cannot create the attribute " + name),
+                     H5Aclose);
+            check(H5Awrite(a.get(), type.get(), padded.data()), "writing the attribute", name);
+        } else {
+            Handle d(check(H5Dcreate2(at, name.c_str(), type.get(), space.get(), H5P_DEFAULT,
+                                      H5P_DEFAULT, H5P_DEFAULT),
+                           "cannot create the array " + name),
+                     H5Dclose);
+            check(H5Dwrite(d.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, padded.data()),
+                  "writing the text", name);
+        }
     }
-    // Text of any length (an attribute holds 64 kB at most).
-    void text_dataset(hid_t at, const std::string &name, const std::string &value) const {
-        Handle type(check(H5Tcopy(H5T_C_S1), "string type"), H5Tclose);
-        check(H5Tset_size(type.get(), std::max<std::size_t>(value.size(), 1)), "sizing string",
-              name);
-        Handle space(check(H5Screate(H5S_SCALAR), "dataspace"), H5Sclose);
-        Handle d(check(H5Dcreate2(at, name.c_str(), type.get(), space.get(), H5P_DEFAULT,
-                                  H5P_DEFAULT, H5P_DEFAULT),
-                       "cannot create the array " + name),
-                 H5Dclose);
-        const std::string padded = value.empty() ? std::string(1, '\0') : value;
-        check(H5Dwrite(d.get(), type.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, padded.data()),
-              "writing the text", name);
-    }
-    std::string read_text_dataset(hid_t at, const std::string &name) const {
-        Handle d(check(H5Dopen2(at, name.c_str(), H5P_DEFAULT), "missing text '" + name + "'"),
-                 H5Dclose);
-        Handle type(check(H5Dget_type(d.get()), "text type"), H5Tclose);
+    std::string read_text(hid_t at, const std::string &name, As as) const {
+        const bool attr = as == As::attribute;
+        Handle obj(check(attr ? H5Aopen(at, name.c_str(), H5P_DEFAULT)
+                              : H5Dopen2(at, name.c_str(), H5P_DEFAULT),
+                         "missing '" + name + "'"),
+                   attr ? H5Aclose : H5Dclose);
+        Handle type(check(attr ? H5Aget_type(obj.get()) : H5Dget_type(obj.get()), "text type"),
+                    H5Tclose);
         if (H5Tget_class(type.get()) != H5T_STRING) fail("'" + name + "' is not text");
         const std::size_t n = H5Tget_size(type.get());
         std::string out(n, '\0');
-        Handle mem(check(H5Tcopy(H5T_C_S1), "string type"), H5Tclose);
-        check(H5Tset_size(mem.get(), n), "sizing string", name);
-        check(H5Dread(d.get(), mem.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()),
+        const Handle mem = string_type(n, name);
+        check(attr ? H5Aread(obj.get(), mem.get(), out.data())
+                   : H5Dread(obj.get(), mem.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()),
               "reading the text", name);
         out.resize(std::strlen(out.c_str()));
         return out;
     }
+    void attr_string(hid_t at, const std::string &name, const std::string &value) const {
+        write_text(at, name, value, As::attribute);
+    }
+    std::string read_attr_string(hid_t at, const std::string &name) const {
+        return read_text(at, name, As::attribute);
+    }
+
+    // ---- numbers
     template <class T>
     void attr(hid_t at, const std::string &name, T value) const {
         Handle space(check(H5Screate(H5S_SCALAR), "dataspace"), H5Sclose);
@@ -142,19 +151,6 @@ class H5 {
 
     // ---- reading
     bool has(hid_t at, const std::string &name) const { return H5Aexists(at, name.c_str()) > 0; }
-    std::string read_attr_string(hid_t at, const std::string &name) const {
-        Handle a(check(H5Aopen(at, name.c_str(), H5P_DEFAULT), "missing attribute '" + name + "'"),
-                 H5Aclose);
-        Handle type(check(H5Aget_type(a.get()), "attribute type"), H5Tclose);
-        if (H5Tget_class(type.get()) != H5T_STRING) fail("attribute '" + name + "' is not text");
-        const std::size_t n = H5Tget_size(type.get());
-        std::string out(n, '\0');
-        Handle mem(check(H5Tcopy(H5T_C_S1), "string type"), H5Tclose);
-        check(H5Tset_size(mem.get(), n), "sizing string", name);
-        check(H5Aread(a.get(), mem.get(), out.data()), "reading the attribute", name);
-        out.resize(std::strlen(out.c_str()));
-        return out;
-    }
     template <class T>
     T read_attr(hid_t at, const std::string &name) const {
         Handle a(check(H5Aopen(at, name.c_str(), H5P_DEFAULT), "missing attribute '" + name + "'"),
@@ -189,6 +185,12 @@ class H5 {
         return Handle(check(H5Gopen2(at, name.c_str(), H5P_DEFAULT),
                             "missing group '" + name + "' (not a complete checkpoint)"),
                       H5Gclose);
+    }
+
+    Handle string_type(std::size_t n, const std::string &name) const {
+        Handle type(check(H5Tcopy(H5T_C_S1), "string type"), H5Tclose);
+        check(H5Tset_size(type.get(), n), "sizing the text", name);
+        return type;
     }
 
     template <class T>
@@ -416,7 +418,7 @@ void write_checkpoint(const fs::path &file, const Checkpoint &c) {
                 Handle sc = h5.group(root, "scenario");
                 h5.attr_string(sc.get(), "path", c.scenario_path);
                 h5.attr_string(sc.get(), "sha256", c.scenario_sha256);
-                h5.text_dataset(sc.get(), "text", c.scenario_text);
+                h5.write_text(sc.get(), "text", c.scenario_text, H5::As::dataset);
             }
             {
                 Handle pl = h5.group(root, "plugins");
@@ -488,7 +490,7 @@ Checkpoint read_checkpoint(const fs::path &file) {
         Handle sc = h5.open_group(root, "scenario");
         c.scenario_path = h5.read_attr_string(sc.get(), "path");
         c.scenario_sha256 = h5.read_attr_string(sc.get(), "sha256");
-        c.scenario_text = h5.read_text_dataset(sc.get(), "text");
+        c.scenario_text = h5.read_text(sc.get(), "text", H5::As::dataset);
     }
     {
         Handle pl = h5.open_group(root, "plugins");

@@ -129,16 +129,8 @@ std::vector<ParticleSet>
 make_sets(const Scenario &sc, ColumnsInUse columns,
           const std::vector<std::unique_ptr<MaterialInstance>> &instances) {
     std::vector<ParticleSet> sets;
-    auto use = [&](std::size_t m) {
-        for (const ParticleSet &s : sets)
-            if (s.material == m) return;
+    for (std::size_t m : materials_in_use(sc))
         sets.push_back(new_set(sc, m, columns, instances[m].get()));
-    };
-    for (const GroupSpec &g : sc.groups)
-        use(g.material);
-    for (const StageSpec &st : sc.stages)
-        for (const MaterialSwitch &sw : st.set_material)
-            use(sw.material);
     return sets;
 }
 

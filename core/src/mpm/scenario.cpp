@@ -120,6 +120,19 @@ std::vector<StageSpec> stages_of(const Scenario &sc) {
     return {only};
 }
 
+std::vector<std::size_t> materials_in_use(const Scenario &sc) {
+    std::vector<std::size_t> used;
+    auto use = [&](std::size_t m) {
+        if (std::find(used.begin(), used.end(), m) == used.end()) used.push_back(m);
+    };
+    for (const GroupSpec &g : sc.groups)
+        use(g.material);
+    for (const StageSpec &st : sc.stages)
+        for (const MaterialSwitch &sw : st.set_material)
+            use(sw.material);
+    return used;
+}
+
 std::vector<std::size_t> first_stage_of_groups(const Scenario &sc) {
     std::vector<std::size_t> first(sc.groups.size(), 0);
     for (std::size_t k = 1; k < sc.stages.size(); ++k)

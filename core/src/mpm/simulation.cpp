@@ -69,20 +69,14 @@ MaterialNames names_of(const Scenario &sc, const std::vector<ParticleSet> &sets)
 // the material's place in the file.
 std::vector<std::unique_ptr<MaterialInstance>> make_instances(const Scenario &sc) {
     std::vector<std::unique_ptr<MaterialInstance>> out(sc.materials.size());
-    auto make = [&](std::size_t k) {
-        if (out[k]) return;
+    for (std::size_t k : materials_in_use(sc)) {
         const NamedMaterial &m = sc.materials[k];
         try {
             out[k] = instantiate(m.spec);
         } catch (const Error &e) {
             throw Error(m.origin.error(e.what()));
         }
-    };
-    for (const GroupSpec &g : sc.groups)
-        make(g.material);
-    for (const StageSpec &st : sc.stages)
-        for (const MaterialSwitch &sw : st.set_material)
-            make(sw.material);
+    }
     return out;
 }
 

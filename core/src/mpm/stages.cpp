@@ -55,16 +55,23 @@ void Simulation::Impl::switch_material(const MaterialSwitch &sw) {
     for (std::size_t si = 0; si < sets.size(); ++si) {
         if (si == to) continue;
         ParticleSet &src = sets[si];
-        std::size_t keep = 0;
+        const auto of_group = [&](std::size_t p) {
+            return static_cast<std::size_t>(src.group[p]) == sw.group;
+        };
+        std::size_t moving = 0;
+        for (std::size_t p = 0; p < src.n; ++p)
+            moving += of_group(p) ? 1 : 0;
+        if (moving == 0) continue;
+        std::size_t q = dst.n, keep = 0;
+        dst.resize(q + moving);
         for (std::size_t p = 0; p < src.n; ++p) {
-            if (static_cast<std::size_t>(src.group[p]) != sw.group) {
+            if (!of_group(p)) {
                 src.move(p, keep++);
                 continue;
             }
-            const std::size_t q = dst.n;
-            dst.resize(q + 1);
             dst.copy_point(src, p, q);
             std::copy(q_init.begin(), q_init.end(), dst.state.data() + q * dst.state_size);
+            ++q;
         }
         src.resize(keep);
     }
@@ -103,7 +110,6 @@ void Simulation::Impl::begin_stage(std::size_t k) {
 // but the plugins' wave speeds (exact for a uniaxial strain of a linear
 // elastic material, where rho c^2 is the constrained modulus).
 double Simulation::Impl::kinetic_energy_ratio() const {
-    const Impl &g = *this;
     struct Sum {
         double kinetic = 0.0, strain = 0.0;
         void merge(const Sum &o) {
@@ -112,8 +118,8 @@ double Simulation::Impl::kinetic_energy_ratio() const {
         }
     };
     Sum total;
-    const std::size_t D = static_cast<std::size_t>(g.sc.dim);
-    for (const ParticleSet &s : g.sets) {
+    const std::size_t D = static_cast<std::size_t>(sc.dim);
+    for (const ParticleSet &s : sets) {
         const double inv_rho0 = 1.0 / s.rho0;
         const Sum part = par::reduce<Sum>(s.n, [&](std::size_t p, Sum &r) {
             double v2 = 0.0;

@@ -17,14 +17,19 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// The last row of diagnostics.csv of a run of `yaml` into `dir`.
-std::vector<double> last_row(const std::string &yaml, const fs::path &dir) {
-    auto s = talus::test::sim_from_text(yaml);
+// Runs the scenario of `s` into `dir`, replacing a previous run's files.
+void run_into(talus::test::Sim &s, const fs::path &dir, std::ostream &log) {
     talus::RunOptions opt;
     opt.output_dir = dir;
     opt.force = true;
+    talus::run_scenario(s.scenario, opt, log);
+}
+
+// The last row of diagnostics.csv of a run of `yaml` into `dir`.
+std::vector<double> last_row(const std::string &yaml, const fs::path &dir) {
+    auto s = talus::test::sim_from_text(yaml);
     std::ostringstream log;
-    talus::run_scenario(s->scenario, opt, log);
+    run_into(*s, dir, log);
     return talus::test::read_numeric_csv(dir / "diagnostics.csv").back();
 }
 
@@ -267,11 +272,8 @@ TEST(RunOutput, StagesAreMarkedInTheOutput) {
         "    until: {kinetic_energy_ratio: 1.0e-6}\n"
         "  - {name: loaded, duration: 0.05, loads: [{box: {min: [0, 0.97], max: [0.2, 1.0]}, "
         "traction: [0, -1000]}]}\n"));
-    talus::RunOptions opt;
-    opt.output_dir = dir;
-    opt.force = true;
     std::ostringstream log;
-    talus::run_scenario(s->scenario, opt, log);
+    run_into(*s, dir, log);
     EXPECT_NE(log.str().find("stage 'geostatic' ended at"), std::string::npos) << log.str();
     const auto stages = lines_of(dir / "stages.csv");
     ASSERT_EQ(stages.size(), 3u);
@@ -326,12 +328,9 @@ TEST(RunOutput, AStageNotAtRestStopsTheRunWithItsStateWritten) {
     auto s = talus::test::sim_from_text(staged_column("  - name: geostatic\n    duration: 0.1\n"
                                                       "    until: {kinetic_energy_ratio: 1.0e-6}\n"
                                                       "  - {name: never, duration: 0.1}\n"));
-    talus::RunOptions opt;
-    opt.output_dir = dir;
-    opt.force = true;
     std::ostringstream log;
     try {
-        talus::run_scenario(s->scenario, opt, log);
+        run_into(*s, dir, log);
         FAIL() << "the run went on";
     } catch (const talus::Error &e) {
         const std::string m = e.what();

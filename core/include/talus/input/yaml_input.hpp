@@ -67,6 +67,9 @@ class Node {
 
 // Load a file; syntax errors become talus::Error with file:line:column.
 Node load_file(const std::string &path);
+// The file's text (what load_file parses); throws talus::Error if it cannot
+// be opened.
+std::string read_text_file(const std::string &path);
 // Load from text (tests, generated input); `name` stands in for the file.
 Node load_string(const std::string &text, const std::string &name);
 

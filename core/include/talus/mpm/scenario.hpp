@@ -243,6 +243,9 @@ struct Scenario {
 // The stages a run goes through: the scenario's, or the one stage a
 // scenario without `stages:` is.
 std::vector<StageSpec> stages_of(const Scenario &scenario);
+// The materials a run uses, in order of first use: those of the groups,
+// then those stages switch groups to.
+std::vector<std::size_t> materials_in_use(const Scenario &scenario);
 // The stage in which each group first appears (0 for those present from
 // the start).
 std::vector<std::size_t> first_stage_of_groups(const Scenario &scenario);
