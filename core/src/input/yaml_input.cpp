@@ -22,7 +22,16 @@ std::string child_path(const std::string &parent, std::string_view key) {
 
 } // namespace
 
-std::string Node::where() const { return mark_text(file_, node_.Mark()); }
+// IsDefined() is the one question a missing child (yaml-cpp's "zombie")
+// answers without throwing; it is replaced, never assigned to (assigning to
+// a yaml-cpp node writes through to the document).
+Node::Node(YAML::Node node, std::string file, std::string path, YAML::Mark fallback)
+    : node_(node.IsDefined() ? std::move(node) : YAML::Node(YAML::NodeType::Undefined)),
+      file_(std::move(file)), path_(std::move(path)), mark_(fallback) {
+    if (node_.IsDefined() && !node_.Mark().is_null()) mark_ = node_.Mark();
+}
+
+std::string Node::where() const { return mark_text(file_, mark_); }
 
 void Node::fail(const std::string &what) const {
     const std::string key = path_.empty() ? std::string() : fmt::format(" '{}'", path_);
@@ -35,7 +44,7 @@ bool Node::has(std::string_view key) const {
 
 Node Node::get(std::string_view key) const {
     expect_map();
-    return Node(node_[std::string(key)], file_, child_path(path_, key));
+    return Node(node_[std::string(key)], file_, child_path(path_, key), mark_);
 }
 
 Node Node::require(std::string_view key) const {
@@ -44,12 +53,12 @@ Node Node::require(std::string_view key) const {
     if (!child.IsDefined())
         throw Error(
             fmt::format("{}: error: missing required key '{}'", where(), child_path(path_, key)));
-    return Node(child, file_, child_path(path_, key));
+    return Node(child, file_, child_path(path_, key), mark_);
 }
 
 Node Node::at(std::size_t index) const {
     expect_sequence();
-    return Node(node_[index], file_, fmt::format("{}[{}]", path_, index));
+    return Node(node_[index], file_, fmt::format("{}[{}]", path_, index), mark_);
 }
 
 std::vector<std::string> Node::keys() const {
@@ -57,7 +66,16 @@ std::vector<std::string> Node::keys() const {
     std::vector<std::string> out;
     std::vector<YAML::Mark> marks;
     for (const auto &kv : node_) {
-        const std::string key = kv.first.as<std::string>();
+        // A key is a name: `? [a, b]: 1`, `{a: 1}: 2`, `"": 1` or an empty `: 1`
+        // is not.
+        if (!kv.first.IsScalar() || kv.first.Scalar().empty())
+            throw Error(fmt::format("{}: error: {}a key must be a plain name, got {}",
+                                    mark_text(file_, kv.first.Mark()),
+                                    path_.empty() ? "" : fmt::format("in '{}': ", path_),
+                                    kv.first.IsNull() || kv.first.IsScalar() ? "an empty key"
+                                    : kv.first.IsMap()                       ? "a mapping"
+                                                                             : "a sequence"));
+        const std::string key = kv.first.Scalar();
         // yaml-cpp keeps both of two equal keys and hands out the first for
         // every lookup: a key (or a group or material name) given twice
         // would silently lose its second definition.
@@ -81,9 +99,9 @@ void Node::expect_sequence() const {
 }
 
 void Node::allow_keys(std::span<const std::string_view> allowed) const {
-    keys(); // rejects a key given twice
+    keys(); // rejects a key given twice, or one that is not a name
     for (const auto &kv : node_) {
-        const std::string key = kv.first.as<std::string>();
+        const std::string key = kv.first.Scalar();
         if (std::find(allowed.begin(), allowed.end(), key) != allowed.end()) continue;
         const std::string guess = closest_match(key, allowed);
         std::string list;

@@ -437,7 +437,20 @@ std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
         throw Error(fmt::format("{}: the plugin refused to load (host speaks ABI {}.{}): {}",
                                 file.string(), TALUS_ABI_VERSION_MAJOR, TALUS_ABI_VERSION_MINOR,
                                 read_message(err)));
-    DescriptorChecker chk{file};
+    lib->read_descriptor(desc);
+    return lib;
+}
+
+std::shared_ptr<PluginLibrary> PluginLibrary::from_descriptor(const talus_library *desc,
+                                                              const fs::path &label) {
+    std::shared_ptr<PluginLibrary> lib(new PluginLibrary());
+    lib->path_ = label;
+    lib->read_descriptor(desc);
+    return lib;
+}
+
+void PluginLibrary::read_descriptor(const talus_library *desc) {
+    const DescriptorChecker chk{path_};
     if (!desc) chk.bad("library", "the entry point returned OK but no library descriptor");
     // Read the version first: a library of another major may lay out even
     // the library structure differently, so nothing else is trusted before.
@@ -447,7 +460,7 @@ std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
         throw Error(fmt::format("{}: ABI major version mismatch: the plugin was built for Talus "
                                 "material ABI {}.{}, this host speaks ABI {}.{}; rebuild the "
                                 "plugin against this host's SDK",
-                                file.string(), desc->abi_major, desc->abi_minor,
+                                path_.string(), desc->abi_major, desc->abi_minor,
                                 TALUS_ABI_VERSION_MAJOR, TALUS_ABI_VERSION_MINOR));
     chk.need_size(desc->struct_size, offsetof(talus_library, get_extension), "library");
     chk.need_string(desc->name, "library", "name");
@@ -457,15 +470,14 @@ std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
         chk.bad("library", fmt::format("field 'name' ('{}') must be non-empty, without '/' or "
                                        "spaces: it prefixes the qualified model ids",
                                        desc->name));
-    if (TALUS_HAS_FIELD(talus_library, desc, get_extension))
-        lib->get_extension_ = desc->get_extension;
+    if (TALUS_HAS_FIELD(talus_library, desc, get_extension)) get_extension_ = desc->get_extension;
     if (desc->n_models == 0)
         chk.bad("library", "field 'n_models' is 0: the library offers no model");
     if (!desc->models) chk.bad("library", "field 'models' is null");
-    lib->name_ = desc->name;
-    lib->version_ = desc->version;
-    lib->abi_major_ = desc->abi_major;
-    lib->abi_minor_ = desc->abi_minor;
+    name_ = desc->name;
+    version_ = desc->version;
+    abi_major_ = desc->abi_major;
+    abi_minor_ = desc->abi_minor;
 
     std::set<std::string> ids;
     for (std::uint32_t m = 0; m < desc->n_models; ++m) {
@@ -494,7 +506,7 @@ std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
 
         Model model;
         model.raw_ = md;
-        model.library_ = lib.get();
+        model.library_ = this;
         if (TALUS_HAS_FIELD(talus_model, md, init_state)) {
             model.create_ex_ = md->create_ex;
             model.instance_state_ = md->instance_state;
@@ -522,9 +534,8 @@ std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
         }
         // An instance-state model's own table is ignored (material_abi.h).
         if (!model.instance_state()) model.state_ = chk.layout(md->state, md->n_state, where);
-        lib->models_.push_back(std::move(model));
+        models_.push_back(std::move(model));
     }
-    return lib;
 }
 
 PluginLibrary::~PluginLibrary() {

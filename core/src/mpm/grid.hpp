@@ -68,7 +68,7 @@ struct CacheLineAllocator {
     template <class U>
     CacheLineAllocator(const CacheLineAllocator<U> &) {}
     T *allocate(std::size_t n) { return static_cast<T *>(::operator new(n * sizeof(T), kAlign)); }
-    void deallocate(T *p, std::size_t n) { ::operator delete(p, n * sizeof(T), kAlign); }
+    void deallocate(T *p, std::size_t) { ::operator delete(p, kAlign); }
     friend bool operator==(const CacheLineAllocator &, const CacheLineAllocator &) { return true; }
 };
 using NodeRecords = std::vector<double, CacheLineAllocator<double>>;

@@ -19,8 +19,12 @@ namespace talus::yaml {
 // so that any error about it can say where it is.
 class Node {
   public:
-    Node(YAML::Node node, std::string file, std::string path)
-        : node_(std::move(node)), file_(std::move(file)), path_(std::move(path)) {}
+    // `fallback`: where to point when the node has no position of its own
+    // (an absent key: its parent's). An absent node is held as a valid,
+    // undefined one, so that asking it anything never throws yaml-cpp's
+    // InvalidNode.
+    Node(YAML::Node node, std::string file, std::string path,
+         YAML::Mark fallback = YAML::Mark::null_mark());
 
     const YAML::Node &raw() const { return node_; }
     const std::string &file() const { return file_; }
@@ -63,6 +67,7 @@ class Node {
     YAML::Node node_;
     std::string file_;
     std::string path_;
+    YAML::Mark mark_;
 };
 
 // Load a file; syntax errors become talus::Error with file:line:column.

@@ -153,6 +153,12 @@ class PluginLibrary : public std::enable_shared_from_this<PluginLibrary> {
     // Opens, calls the entry point and validates every descriptor; throws
     // talus::Error naming the file and the problem.
     static std::shared_ptr<PluginLibrary> open(const std::filesystem::path &file);
+    // The checks open() makes of the descriptor its entry point returned, on
+    // a descriptor already in memory (no file is loaded; `label` names it in
+    // messages). The library and its models point into `desc`, which must
+    // outlive them. For the descriptor fuzzer (fuzz/plugin_descriptor.cpp).
+    static std::shared_ptr<PluginLibrary> from_descriptor(const talus_library *desc,
+                                                          const std::filesystem::path &label);
     ~PluginLibrary();
     PluginLibrary(const PluginLibrary &) = delete;
     PluginLibrary &operator=(const PluginLibrary &) = delete;
@@ -188,6 +194,7 @@ class PluginLibrary : public std::enable_shared_from_this<PluginLibrary> {
   private:
     PluginLibrary() = default;
     friend class Model;
+    void read_descriptor(const talus_library *desc);
     static void host_log(void *context, std::int32_t level, const char *message);
     void *handle_ = nullptr;
     std::filesystem::path path_;

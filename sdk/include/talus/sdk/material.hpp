@@ -540,7 +540,7 @@ struct Descriptors {
                         "update: the model needs the increment's rotation and the host "
                         "gave none");
 
-        const M &model = *reinterpret_cast<const M *>(inst);
+        const M &self = *reinterpret_cast<const M *>(inst);
         // The inputs are screened for the whole batch first, in vector-wide
         // passes, and a failing point is looked for only when one trips. F
         // is screened for the models that compute from it; for the others
@@ -606,11 +606,11 @@ struct Descriptors {
                 // (aliasing), so `in` holds the only copy of the inputs.
                 if constexpr (has_init_state) {
                     if (setup)
-                        model.init_state(in, out);
+                        self.init_state(in, out);
                     else
-                        model.update(in, out);
+                        self.update(in, out);
                 } else {
-                    model.update(in, out);
+                    self.update(in, out);
                 }
 
                 // The outputs are not screened here: the host screens every
@@ -618,7 +618,7 @@ struct Descriptors {
                 // non-positive wave speeds), whether built with this SDK or
                 // not, so one screen serves both.
                 double c = 0.0;
-                if (want_c) c = model.wave_speed(in, out);
+                if (want_c) c = self.wave_speed(in, out);
                 Eigen::Map<Vec6>(b->stress_end + 6 * k) = out.stress;
                 if (want_c) b->wave_speed[k] = c;
                 if (want_t) Eigen::Map<RowMat6>(b->tangent + 36 * k) = tangent;
