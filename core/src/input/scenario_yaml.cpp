@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <map>
 
@@ -23,19 +24,21 @@ using Keys = std::vector<std::string_view>;
 const std::vector<std::pair<std::string_view, Keys>> &schema() {
     static const std::vector<std::pair<std::string_view, Keys>> s = {
         {"",
-         {"talus", "dimension", "plugins", "grid", "materials", "groups", "boundaries", "gravity",
-          "damping", "nodal_velocities", "particle_velocities", "loads", "solver", "time", "stages",
-          "output", "checkpoint"}},
+         {"talus", "dimension", "plugins", "constants", "grid", "materials", "groups", "boundaries",
+          "gravity", "damping", "nodal_velocities", "particle_velocities", "loads", "solver",
+          "time", "stages", "output", "checkpoint"}},
         {"grid", {"origin", "size", "cell"}},
         {"materials.*", {"model", "density", "initial_state"}},
         {"groups.*",
          {"material", "shape", "particles_per_cell", "velocity", "angular_velocity",
-          "initial_stress"}},
+          "initial_stress", "initial_state"}},
+        {"groups.*.velocity", {"x", "y", "z"}},
         {"groups.*.shape", {"box", "sphere", "cylinder", "polygon"}},
         {"groups.*.shape.box", {"min", "max"}},
         {"groups.*.shape.sphere", {"center", "radius"}},
         {"groups.*.shape.cylinder", {"center", "radius", "axis", "length"}},
-        {"groups.*.initial_stress", {"uniform", "geostatic"}},
+        {"groups.*.initial_stress", {"uniform", "field", "geostatic"}},
+        {"groups.*.initial_stress.field", {"xx", "yy", "zz", "xy", "yz", "xz"}},
         {"groups.*.initial_stress.geostatic", {"k0", "surface"}},
         {"boundaries", {"x-", "x+", "y-", "y+", "z-", "z+"}},
         {"boundaries.*", {"friction"}},
@@ -149,6 +152,94 @@ ComponentFunctions read_components(const yaml::Node &n, std::string_view path, i
     return f;
 }
 
+// A number, or an expression of the position in the scenario's constants
+// (SpatialField). A mistake in an expression is reported at its character:
+// the node's column, past an opening quote, plus the offset muParser gives.
+SpatialField read_field(const yaml::Node &n, const Scenario &s) {
+    if (!n.is_scalar())
+        n.fail("expected a number or an expression of the position, e.g. \"0.1*sin(pi*x/L)\"");
+    const std::string text = n.as_string();
+    // A number, also one out of range (1e400), is read as one: as_double
+    // refuses what is not finite, at the node.
+    char *end = nullptr;
+    (void)std::strtod(text.c_str(), &end);
+    if (!text.empty() && end == text.c_str() + text.size()) return SpatialField(n.as_double());
+    try {
+        return SpatialField::expression(text, s.dim, s.constants);
+    } catch (const ExpressionError &e) {
+        const YAML::Mark m = n.raw().Mark();
+        // yaml-cpp tags a quoted scalar "!", a plain one "?".
+        const std::size_t quote = n.raw().Tag() == "!" ? 1 : 0;
+        throw Error(fmt::format("{}:{}:{}: error: '{}': {}", n.file(), m.line + 1,
+                                static_cast<std::size_t>(m.column) + 1 + quote + e.position,
+                                n.path(), e.what()));
+    }
+}
+
+// A group's initial velocity: [vx, vy(, vz)] or {x: .., y: .., z: ..} (an
+// absent component is 0), each a number or an expression.
+std::array<SpatialField, 3> read_velocity(const yaml::Node &n, const Scenario &s) {
+    std::array<SpatialField, 3> v{};
+    if (n.is_map()) {
+        allow(n, "groups.*.velocity");
+        for (int d = 0; d < 3; ++d) {
+            const char name[2] = {"xyz"[d], 0};
+            const yaml::Node c = n.get(name);
+            if (!c.raw().IsDefined()) continue;
+            if (d >= s.dim)
+                c.fail(fmt::format("a {}D scenario has no '{}' component", s.dim, name));
+            v[static_cast<std::size_t>(d)] = read_field(c, s);
+        }
+    } else {
+        if (!n.is_sequence())
+            n.fail(fmt::format("expected [vx, vy{}] or {{x: .., y: ..}} in m/s (numbers or "
+                               "expressions of the position)",
+                               s.dim == 3 ? ", vz" : ""));
+        if (static_cast<int>(n.size()) != s.dim)
+            n.fail(fmt::format("expected {} components (m/s), one per dimension, got {}", s.dim,
+                               n.size()));
+        for (std::size_t d = 0; d < n.size(); ++d)
+            v[d] = read_field(n.at(d), s);
+    }
+    Vec3 constant{0, 0, 0};
+    for (std::size_t d = 0; d < 3; ++d)
+        constant[d] = v[d].constant();
+    check_speed(n, constant);
+    return v;
+}
+
+// A group's `initial_state`: values, or expressions, for the material's
+// user-initialisable state variables (a list for a variable of several
+// components, or one value for all of them).
+std::vector<GroupSpec::StateValue> read_group_state(const yaml::Node &n, const Scenario &s,
+                                                    const NamedMaterial &m) {
+    n.expect_map();
+    std::vector<std::string_view> settable;
+    for (const StateInfo &v : m.spec.state.vars)
+        if (v.user_initialisable()) settable.push_back(v.name);
+    if (settable.empty())
+        n.fail(fmt::format("material '{}' ({}) has no state variable a user may initialise", m.name,
+                           m.spec.model->qualified_id()));
+    n.allow_keys(settable);
+    std::vector<GroupSpec::StateValue> out;
+    for (const StateInfo &v : m.spec.state.vars) {
+        const yaml::Node c = n.get(v.name);
+        if (!c.raw().IsDefined()) continue;
+        if (c.is_sequence()) {
+            if (c.size() != v.size)
+                c.fail(fmt::format("expected {} values for state variable '{}', got {}", v.size,
+                                   v.name, c.size()));
+            for (std::uint32_t k = 0; k < v.size; ++k)
+                out.push_back({v.offset + k, read_field(c.at(k), s)});
+        } else {
+            const SpatialField f = read_field(c, s);
+            for (std::uint32_t k = 0; k < v.size; ++k)
+                out.push_back({v.offset + k, f});
+        }
+    }
+    return out;
+}
+
 // The group called `name`; an unknown name fails at `n`.
 std::size_t group_named(const std::string &name, const yaml::Node &n, const Scenario &s) {
     std::vector<std::string> names;
@@ -202,18 +293,30 @@ GroupShape read_shape(const yaml::Node &n, int dim) {
     return s;
 }
 
-InitialStress read_initial_stress(const yaml::Node &n) {
+InitialStress read_initial_stress(const yaml::Node &n, const Scenario &sc) {
     n.expect_map();
     allow(n, "groups.*.initial_stress");
-    if (n.keys().size() != 1) n.fail("expected exactly one of uniform, geostatic");
+    if (n.keys().size() != 1) n.fail("expected exactly one of uniform, field, geostatic");
     InitialStress s;
     if (const yaml::Node u = n.get("uniform"); u.defined()) {
-        s.kind = InitialStress::Kind::uniform;
+        s.kind = InitialStress::Kind::given;
         const std::vector<double> v = u.as_doubles();
         if (v.size() != 6)
             u.fail(fmt::format("expected 6 components [xx, yy, zz, xy, yz, xz] in Pa, got {}",
                                v.size()));
-        std::copy(v.begin(), v.end(), s.uniform.begin());
+        std::copy(v.begin(), v.end(), s.components.begin());
+    } else if (const yaml::Node f = n.get("field"); f.raw().IsDefined()) {
+        s.kind = InitialStress::Kind::given;
+        f.expect_map();
+        allow(f, "groups.*.initial_stress.field");
+        constexpr std::array<std::string_view, 6> names = {"xx", "yy", "zz", "xy", "yz", "xz"};
+        for (std::size_t k = 0; k < 6; ++k) {
+            const yaml::Node c = f.get(names[k]);
+            if (!c.raw().IsDefined()) continue;
+            if (sc.dim == 2 && k >= 4)
+                c.fail(fmt::format("'{}' is zero in plane strain (2D)", names[k]));
+            s.components[k] = read_field(c, sc);
+        }
     } else {
         const yaml::Node g = n.require("geostatic");
         s.kind = InitialStress::Kind::geostatic;
@@ -594,6 +697,17 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
         if (std::round(n) > 1e6) cell.fail("more than 1e6 cells in one direction");
     }
 
+    // Constants, for the expressions below.
+    if (const yaml::Node cs = root.get("constants"); cs.defined()) {
+        cs.expect_map();
+        for (const std::string &name : cs.keys()) {
+            const yaml::Node c = cs.get(name);
+            if (const std::string why = SpatialField::check_constant_name(name); !why.empty())
+                c.fail(why);
+            s.constants.push_back({name, c.as_double()});
+        }
+    }
+
     // Materials.
     const yaml::Node mats = root.require("materials");
     mats.expect_map();
@@ -643,8 +757,8 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
             gs.particles_per_cell = static_cast<int>(n);
         }
         if (const yaml::Node v = g.get("velocity"); v.defined()) {
-            gs.velocity = vec(v, s.dim, "m/s");
-            check_speed(v, gs.velocity);
+            gs.velocity = read_velocity(v, s);
+            gs.velocity_origin = origin_of(v, "groups." + name + ".velocity");
         }
         if (const yaml::Node w = g.get("angular_velocity"); w.defined()) {
             if (s.dim == 2)
@@ -664,8 +778,12 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
             check_speed(w, {wn * std::sqrt(r2), 0.0, 0.0});
         }
         if (const yaml::Node st = g.get("initial_stress"); st.defined()) {
-            gs.stress = read_initial_stress(st);
+            gs.stress = read_initial_stress(st, s);
             gs.stress_origin = origin_of(st, "groups." + name + ".initial_stress");
+        }
+        if (const yaml::Node st = g.get("initial_state"); st.defined()) {
+            gs.initial_state = read_group_state(st, s, s.materials[gs.material]);
+            gs.state_origin = origin_of(st, "groups." + name + ".initial_state");
         }
         s.groups.push_back(std::move(gs));
     }

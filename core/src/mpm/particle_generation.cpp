@@ -67,14 +67,32 @@ std::vector<std::array<double, 3>> lattice_points(const Scenario &sc, const Grou
     return points;
 }
 
+// A field's value at x; an expression that fails there or gives no finite
+// number is the input's mistake, reported where the expression is.
+double field_value(const SpatialField &f, const double *x, const Origin &origin, int dim) {
+    if (f.is_constant()) return f.constant();
+    double v = 0.0;
+    try {
+        v = f(x);
+    } catch (const ExpressionError &e) {
+        throw Error(origin.error(e.what()));
+    }
+    if (!std::isfinite(v))
+        throw Error(origin.error(fmt::format(
+            "the expression \"{}\" gives {} at the particle at ({:g}, {:g}{})", f.text(), v, x[0],
+            x[1], dim == 3 ? fmt::format(", {:g}", x[2]) : std::string())));
+    return v;
+}
+
 // The stress at t = 0 at height x[D-1]: uniform, or geostatic
 // sigma_v = rho g (surface - height), tension positive, sigma_h = K0 sigma_v.
 void initial_stress(const Scenario &sc, const GroupSpec &gs, const Box &bounds, double rho0,
                     const Vec3 &gravity, const double *x, double *sig) {
     const int D = sc.dim;
     std::fill_n(sig, 6, 0.0);
-    if (gs.stress.kind == InitialStress::Kind::uniform)
-        std::copy_n(gs.stress.uniform.begin(), 6, sig);
+    if (gs.stress.kind == InitialStress::Kind::given)
+        for (std::size_t k = 0; k < 6; ++k)
+            sig[k] = field_value(gs.stress.components[k], x, gs.stress_origin, sc.dim);
     if (gs.stress.kind != InitialStress::Kind::geostatic) return;
     const std::size_t up = static_cast<std::size_t>(D - 1);
     const double surface = gs.stress.surface.value_or(bounds.max[up]);
@@ -99,7 +117,20 @@ void place(const Scenario &sc, std::size_t gi, const Box &bb, const std::vector<
                            w[0] * r[1] - w[1] * r[0]};
     for (std::size_t d = 0; d < static_cast<std::size_t>(D); ++d) {
         s.x[d][p] = s.x0[d][p] = x[d];
-        s.v[d][p] = gs.velocity[d] + wxr[d];
+        s.v[d][p] = field_value(gs.velocity[d], x.data(), gs.velocity_origin, D) + wxr[d];
+    }
+    // A velocity above the speed of light is a typo or a unit error (and
+    // its square overflows the energy diagnostics): the reader checks
+    // numbers, this the values of expressions.
+    if (std::any_of(gs.velocity.begin(), gs.velocity.end(),
+                    [](const SpatialField &f) { return !f.is_constant(); })) {
+        const double speed = std::hypot(s.v[0][p], s.v[1][p], D == 3 ? s.v[2][p] : 0.0);
+        if (!(speed < 299792458.0))
+            throw Error(gs.velocity_origin.error(
+                fmt::format("a speed of {:g} m/s at the particle at ({:g}, {:g}) is not a "
+                            "velocity of a continuum (faster than light); check the "
+                            "expression and its units",
+                            speed, x[0], x[1])));
     }
     const double V0 = std::pow(sc.cell / gs.particles_per_cell, D);
     s.vol0[p] = V0;
@@ -110,6 +141,8 @@ void place(const Scenario &sc, std::size_t gi, const Box &bb, const std::vector<
     s.J[p] = 1.0;
     initial_stress(sc, gs, bb, s.rho0, gravity, x.data(), &s.stress[6 * p]);
     std::copy(q_init.begin(), q_init.end(), s.state.data() + p * s.state_size);
+    for (const GroupSpec::StateValue &sv : gs.initial_state)
+        s.state[p * s.state_size + sv.index] = field_value(sv.value, x.data(), gs.state_origin, D);
     if (s.has_C) {
         // The affine transfers start from the rigid motion's exact velocity
         // gradient, skew(w).

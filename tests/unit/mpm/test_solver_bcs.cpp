@@ -319,6 +319,46 @@ TEST(InitialState, UniformStress) {
             ASSERT_EQ(set.stress[6 * p + c], given[c]);
 }
 
+// Fields given as expressions of position (docs/scenario-reference.md,
+// "Expressions"): each particle's stress, velocity and initial state equal
+// the expression's closed form at its initial position. The expression and
+// the test evaluate the same formula in double precision, in a different
+// order: 1e-12 of each field's largest value bounds the round-off.
+TEST(InitialState, FieldsGivenAsExpressionsOfPosition) {
+    auto s = sim_from_text(
+        "talus: 1\ndimension: 2\nconstants: {H: 1.5, rho: 2000, g: 9.81, w: 0.4}\n"
+        "materials:\n  m: {model: mohr_coulomb, density: 2000, youngs_modulus: 5.0e7, "
+        "poisson_ratio: 0.3, friction_angle: 30, cohesion: 1.0e5}\n"
+        "grid: {origin: [0, 0], size: [2, 2], cell: 0.1}\n"
+        "groups:\n  soil:\n    material: m\n"
+        "    shape: {box: {min: [0, 0], max: [2, 1.5]}}\n"
+        "    velocity: [\"w*y\", \"-w*x\"]\n"
+        "    initial_stress: {field: {yy: \"-rho*g*(H - y)\", xx: \"-0.5*rho*g*(H - y)\", "
+        "xy: \"100*sin(pi*x)\"}}\n"
+        "    initial_state: {plastic_deviatoric_strain: \"y < x ? 0.01*x : 0\"}\n"
+        "time: {end: 1}\n");
+    const auto &set = s->sim->sets()[0];
+    ASSERT_EQ(set.n, 1200u);
+    const std::size_t eps = 0; // plastic_deviatoric_strain: the first variable
+    ASSERT_EQ(set.state_size > 0, true);
+    int band = 0;
+    for (std::size_t p = 0; p < set.n; ++p) {
+        const double x = set.x[0][p], y = set.x[1][p];
+        const double sv = -2000.0 * 9.81 * (1.5 - y);
+        ASSERT_NEAR(set.v[0][p], 0.4 * y, 1e-12 * 0.8);
+        ASSERT_NEAR(set.v[1][p], -0.4 * x, 1e-12 * 0.8);
+        ASSERT_NEAR(set.stress[6 * p + 1], sv, 1e-12 * 3e4);
+        ASSERT_NEAR(set.stress[6 * p + 0], 0.5 * sv, 1e-12 * 3e4);
+        ASSERT_EQ(set.stress[6 * p + 2], 0.0);
+        ASSERT_NEAR(set.stress[6 * p + 3], 100.0 * std::sin(M_PI * x), 1e-12 * 100.0);
+        const double q = set.state[p * set.state_size + eps];
+        ASSERT_NEAR(q, y < x ? 0.01 * x : 0.0, 1e-12 * 0.02);
+        band += q > 0.0;
+    }
+    EXPECT_GT(band, 100); // the conditional took both branches
+    EXPECT_LT(band, 1100);
+}
+
 // Cell-averaged dilation (eqs. 52-53): after one step every point of a cell
 // has the same volumetric strain increment, equal to the volume-weighted
 // mean of the increments the points would have had without averaging (the

@@ -8,9 +8,11 @@
 
 #include <talus/material/material_spec.hpp>
 #include <talus/mpm/shape_functions.hpp>
+#include <talus/mpm/spatial_field.hpp>
 #include <talus/mpm/time_function.hpp>
 
 #include <array>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -58,10 +60,11 @@ struct GroupShape {
 };
 
 struct InitialStress {
-    enum class Kind { none, uniform, geostatic } kind = Kind::none;
-    std::array<double, 6> uniform{0, 0, 0, 0, 0, 0}; // Voigt, Pa, tension +
-    double k0 = 0.5;                                 // geostatic: sigma_h / sigma_v
-    std::optional<double> surface;                   // geostatic: free-surface level
+    // given: `components`, numbers (uniform:) or functions of position (field:)
+    enum class Kind { none, given, geostatic } kind = Kind::none;
+    std::array<SpatialField, 6> components{}; // Voigt, Pa, tension +
+    double k0 = 0.5;                          // geostatic: sigma_h / sigma_v
+    std::optional<double> surface;            // geostatic: free-surface level
 };
 
 struct GroupSpec {
@@ -69,12 +72,20 @@ struct GroupSpec {
     std::size_t material = 0; // index into Scenario::materials
     GroupShape shape;
     int particles_per_cell = 2; // per direction
-    Vec3 velocity{0, 0, 0};
+    std::array<SpatialField, 3> velocity{};
     // Rigid rotation added to the initial velocity, about the centre of the
     // shape's bounding box: rad/s about z in 2D, a vector in 3D.
     Vec3 angular_velocity{0, 0, 0};
     InitialStress stress;
-    Origin origin, shape_origin, stress_origin;
+    // Values of the material's user-initialisable state variables that
+    // replace its initial_state in this group: component `index` of the
+    // point's state vector.
+    struct StateValue {
+        std::uint32_t index = 0;
+        SpatialField value;
+    };
+    std::vector<StateValue> initial_state;
+    Origin origin, shape_origin, stress_origin, velocity_origin, state_origin;
 };
 
 struct NamedMaterial {
@@ -224,6 +235,8 @@ struct Scenario {
     int dim = 2;
     Vec3 origin{0, 0, 0}, size{0, 0, 0};
     double cell = 0.0;
+    // The named numbers expressions may use (`constants:`).
+    std::vector<NamedConstant> constants;
     std::vector<NamedMaterial> materials;
     std::vector<GroupSpec> groups;
     // The conditions of a scenario without stages (and what its first stage
