@@ -405,14 +405,17 @@ TEST(Verification, ElasticaMatchesTheTabulatedValue) {
 // neo_hookean (E = 1 MPa, nu = 0), clamped at a `fixed` face, a dead load
 // PL^2/EI = 2 on its last particle column from t = 0. PIC damps the motion,
 // so the beam comes to rest at the discrete equilibrium.
-TEST(Verification, HeldTipLoadSettlesUnderEveryScheme) {
+// One test per scheme, so that ctest runs them side by side.
+class HeldTipLoad : public ::testing::TestWithParam<const char *> {};
+
+TEST_P(HeldTipLoad, SettlesUnderTheScheme) {
     const double E = 1e6, t = 0.1, L = 1.0, h = t / 3, EI = E * t * t * t / 12;
     const double P = 2.0 * EI / (L * L); // per unit depth
     const double x_load = L - h / 6;     // the last particle column
     const int across = 9;                // its particles
     const double reference = elastica_tip_deflection(P / EI, x_load);
-    for (const char *scheme : {"usl", "usf", "musl", "usavg"}) {
-        SCOPED_TRACE(scheme);
+    {
+        const char *scheme = GetParam();
         auto s = talus::test::sim_from_text(fmt::format(
             "talus: 1\ndimension: 2\ngrid: {{origin: [0, 0], size: [1.2, 1.2], cell: {h}}}\n"
             "materials:\n  m: {{model: neo_hookean, density: 1000, youngs_modulus: {E}, "
@@ -462,6 +465,12 @@ TEST(Verification, HeldTipLoadSettlesUnderEveryScheme) {
         EXPECT_LT(std::abs(late - early), 0.01 * reference);
     }
 }
+
+INSTANTIATE_TEST_SUITE_P(Verification, HeldTipLoad,
+                         ::testing::Values("usl", "usf", "musl", "usavg"),
+                         [](const ::testing::TestParamInfo<const char *> &info) {
+                             return std::string(info.param);
+                         });
 
 // The CPDI paper's large-deformation benchmark (Sadeghirad, Brannon &
 // Burghardt 2011): a 4 m x 1 m Neo-Hookean cantilever released under its own
