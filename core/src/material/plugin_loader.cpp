@@ -134,6 +134,9 @@ namespace {
 
 bool is_snake_identifier(const char *s) { return s && talus::is_snake_identifier(s); }
 
+// The most values a list parameter may require (material_abi.h).
+constexpr std::uint32_t kMaxListMinCount = 65536;
+
 // Keys the host owns in a material's YAML; a plugin cannot take them.
 constexpr std::string_view kReservedKeys[] = {"model", "density", "initial_state"};
 
@@ -201,6 +204,14 @@ struct DescriptorChecker {
             if (d->typical_string) p.typical_string = d->typical_string;
         }
         if (p.type == TALUS_PARAM_REAL_ARRAY) {
+            // The host builds the typical list (min_count copies) for the
+            // conformance checks and the documentation: a count in the
+            // billions would take the machine's memory (found by the
+            // descriptor fuzzer).
+            if (p.min_count > kMaxListMinCount)
+                bad(where, fmt::format("field 'min_count' ({}) is above the {} values a list "
+                                       "parameter may require",
+                                       p.min_count, kMaxListMinCount));
             if (p.max_count > 0 && p.min_count > p.max_count)
                 bad(where, fmt::format("fields 'min_count' ({}) and 'max_count' ({}) are not an "
                                        "interval",

@@ -202,8 +202,8 @@ typedef struct talus_param_desc {
     /* ---- ABI 1.1 ---- */
     /* REAL_ARRAY: how many values the user may give (max_count 0: no upper
      * limit). When not REQUIRED the default is the empty list, so min_count
-     * is then 0. The typical value of a REQUIRED list is max(min_count, 1)
-     * copies of typical_value; that of an optional list is the empty list. */
+     * is then 0. min_count is at most 65536. The typical value of a REQUIRED list is max(min_count,
+     * 1) copies of typical_value; that of an optional list is the empty list. */
     uint32_t min_count;
     uint32_t max_count;
     /* STRING: the value when the user omits it (not REQUIRED; NULL means

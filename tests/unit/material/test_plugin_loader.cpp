@@ -204,6 +204,69 @@ TEST(Loader, InvalidDescriptorNamesTheField) {
         << msg;
 }
 
+// A required list parameter whose min_count the host cannot build the
+// typical list of (found by the descriptor fuzzer: 4e9 values, 32 GB) is
+// refused by name; the largest allowed count, 65536, loads.
+TEST(Loader, ListParameterRequiringTooManyValuesIsRefused) {
+    auto descriptor_with = [](std::uint32_t min_count, auto &&check) {
+        talus_param_desc p{};
+        p.struct_size = sizeof p;
+        p.type = TALUS_PARAM_REAL_ARRAY;
+        p.flags = TALUS_PARAM_REQUIRED;
+        p.key = "props";
+        p.unit = "-";
+        p.doc = "values";
+        p.min_value = -HUGE_VAL;
+        p.max_value = HUGE_VAL;
+        p.typical_value = 1.0;
+        p.min_count = min_count;
+        const talus_param_desc *params[] = {&p};
+        talus_model m{};
+        m.struct_size = sizeof m;
+        m.n_params = 1;
+        m.id = "listed";
+        m.name = "listed";
+        m.version = "1";
+        m.doc = "a model with a list parameter";
+        m.params = params;
+        m.create = [](const double *, std::uint32_t, talus_instance **, talus_error *) {
+            return TALUS_STATUS_FAILED;
+        };
+        m.destroy = [](talus_instance *) {};
+        m.update = [](const talus_instance *, const talus_batch *, talus_error *) {
+            return TALUS_STATUS_FAILED;
+        };
+        m.create_ex = [](const talus_create_args *, talus_instance **, talus_error *) {
+            return TALUS_STATUS_FAILED;
+        };
+        const talus_model *models[] = {&m};
+        talus_library lib{};
+        lib.struct_size = sizeof lib;
+        lib.abi_major = TALUS_ABI_VERSION_MAJOR;
+        lib.abi_minor = TALUS_ABI_VERSION_MINOR;
+        lib.n_models = 1;
+        lib.name = "lists";
+        lib.version = "1";
+        lib.models = models;
+        check(lib);
+    };
+    descriptor_with(65536, [](const talus_library &lib) {
+        const auto loaded = talus::PluginLibrary::from_descriptor(&lib, "lists.so");
+        EXPECT_EQ(loaded->models().at(0).params().at(0).typical_param().reals.size(), 65536u);
+    });
+    descriptor_with(65537, [](const talus_library &lib) {
+        try {
+            (void)talus::PluginLibrary::from_descriptor(&lib, "lists.so");
+            ADD_FAILURE() << "a min_count of 65537 was accepted";
+        } catch (const talus::Error &e) {
+            EXPECT_TRUE(contains(e.what(), "lists.so: invalid plugin descriptor: model 'listed' "
+                                           "parameter #0: field 'min_count' (65537) is above the "
+                                           "65536 values"))
+                << e.what();
+        }
+    });
+}
+
 // Model ids may repeat across libraries (ABI 1.1 qualified ids): the short
 // id is then refused as ambiguous, naming the qualified ids, and the
 // qualified id picks one. Two libraries of the same name are refused.
