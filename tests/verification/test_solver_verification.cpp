@@ -468,8 +468,8 @@ TEST_P(HeldTipLoad, SettlesUnderTheScheme) {
 
 INSTANTIATE_TEST_SUITE_P(Verification, HeldTipLoad,
                          ::testing::Values("usl", "usf", "musl", "usavg"),
-                         [](const ::testing::TestParamInfo<const char *> &info) {
-                             return std::string(info.param);
+                         [](const ::testing::TestParamInfo<const char *> &param) {
+                             return std::string(param.param);
                          });
 
 // The CPDI paper's large-deformation benchmark (Sadeghirad, Brannon &
