@@ -118,9 +118,8 @@ Origin origin_of(const yaml::Node &n, std::string key = {}) {
 // A velocity above the speed of light is a typo (or a unit error), and its
 // square overflows the energy diagnostics long before that matters.
 void check_speed(const yaml::Node &n, const Vec3 &v) {
-    constexpr double c_light = 299792458.0;
     const double speed = std::hypot(v[0], v[1], v[2]);
-    if (!(speed < c_light))
+    if (!(speed < kSpeedOfLight))
         n.fail(fmt::format("a speed of {:g} m/s is not a velocity of a continuum (faster than "
                            "light); check the value and its units",
                            speed));

@@ -67,6 +67,12 @@ std::vector<std::array<double, 3>> lattice_points(const Scenario &sc, const Grou
     return points;
 }
 
+// "(x, y)" or "(x, y, z)", for messages.
+std::string position_text(const double *x, int dim) {
+    return dim == 3 ? fmt::format("({:g}, {:g}, {:g})", x[0], x[1], x[2])
+                    : fmt::format("({:g}, {:g})", x[0], x[1]);
+}
+
 // A field's value at x; an expression that fails there or gives no finite
 // number is the input's mistake, reported where the expression is.
 double field_value(const SpatialField &f, const double *x, const Origin &origin, int dim) {
@@ -78,9 +84,8 @@ double field_value(const SpatialField &f, const double *x, const Origin &origin,
         throw Error(origin.error(e.what()));
     }
     if (!std::isfinite(v))
-        throw Error(origin.error(fmt::format(
-            "the expression \"{}\" gives {} at the particle at ({:g}, {:g}{})", f.text(), v, x[0],
-            x[1], dim == 3 ? fmt::format(", {:g}", x[2]) : std::string())));
+        throw Error(origin.error(fmt::format("the expression \"{}\" gives {} at the particle at {}",
+                                             f.text(), v, position_text(x, dim))));
     return v;
 }
 
@@ -119,19 +124,15 @@ void place(const Scenario &sc, std::size_t gi, const Box &bb, const std::vector<
         s.x[d][p] = s.x0[d][p] = x[d];
         s.v[d][p] = field_value(gs.velocity[d], x.data(), gs.velocity_origin, D) + wxr[d];
     }
-    // A velocity above the speed of light is a typo or a unit error (and
-    // its square overflows the energy diagnostics): the reader checks
-    // numbers, this the values of expressions.
-    if (std::any_of(gs.velocity.begin(), gs.velocity.end(),
-                    [](const SpatialField &f) { return !f.is_constant(); })) {
-        const double speed = std::hypot(s.v[0][p], s.v[1][p], D == 3 ? s.v[2][p] : 0.0);
-        if (!(speed < 299792458.0))
-            throw Error(gs.velocity_origin.error(
-                fmt::format("a speed of {:g} m/s at the particle at ({:g}, {:g}) is not a "
-                            "velocity of a continuum (faster than light); check the "
-                            "expression and its units",
-                            speed, x[0], x[1])));
-    }
+    // The reader refuses such speeds given as numbers; expressions give
+    // theirs only here.
+    const double speed = std::hypot(s.v[0][p], s.v[1][p], D == 3 ? s.v[2][p] : 0.0);
+    if (!(speed < kSpeedOfLight))
+        throw Error((gs.velocity_origin.key.empty() ? gs.origin : gs.velocity_origin)
+                        .error(fmt::format(
+                            "a speed of {:g} m/s at the particle at {} is not a velocity of a "
+                            "continuum (faster than light); check the expression and its units",
+                            speed, position_text(x.data(), D))));
     const double V0 = std::pow(sc.cell / gs.particles_per_cell, D);
     s.vol0[p] = V0;
     s.mass[p] = s.rho0 * V0;

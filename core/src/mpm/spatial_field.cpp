@@ -17,12 +17,6 @@ namespace talus {
 namespace {
 
 constexpr std::array<std::string_view, 3> kCoordinates = {"x", "y", "z"};
-// muParser's built-in functions (muParser.cpp, InitFun), which a constant
-// may not shadow.
-constexpr std::array<std::string_view, 24> kFunctions = {
-    "sin",  "cos",   "tan",   "asin",  "acos", "atan",  "sinh", "cosh",
-    "tanh", "asinh", "acosh", "atanh", "log2", "log10", "log",  "ln",
-    "exp",  "sqrt",  "sign",  "rint",  "abs",  "min",   "max",  "sum"};
 
 bool is_identifier(const std::string &s) {
     if (s.empty() || !(std::isalpha(static_cast<unsigned char>(s[0])) || s[0] == '_')) return false;
@@ -45,7 +39,9 @@ std::string SpatialField::check_constant_name(const std::string &name) {
     if (std::find(kCoordinates.begin(), kCoordinates.end(), name) != kCoordinates.end() ||
         name == "pi")
         return fmt::format("'{}' is a coordinate or pi, which every expression knows", name);
-    if (std::find(kFunctions.begin(), kFunctions.end(), name) != kFunctions.end() || name == "avg")
+    // muParser's own table of its functions, not a copy of it.
+    static const mu::Parser defaults;
+    if (defaults.GetFunDef().count(name) > 0)
         return fmt::format("'{}' is the name of a function", name);
     return {};
 }

@@ -263,6 +263,12 @@ std::vector<std::size_t> materials_in_use(const Scenario &scenario);
 // the start).
 std::vector<std::size_t> first_stage_of_groups(const Scenario &scenario);
 
+// A speed at or above this is a typo or a unit error, not the velocity of
+// a continuum (and its square overflows the energy diagnostics long before
+// it matters): the reader refuses it in numbers, particle generation in the
+// values of expressions.
+inline constexpr double kSpeedOfLight = 299792458.0; // m/s
+
 // At most this many loads and particle_velocities entries (each particle
 // records its own in a 32-bit mask).
 inline constexpr std::size_t kMaxLoads = 32;
