@@ -23,7 +23,7 @@ struct G2pMotionKernel {
         GradientBlocks *blocks;
         std::size_t set, begin, end;
     };
-    template <class Lanes>
+    template <class Lanes, Isa I>
     [[gnu::always_inline]] static void run(const Args &args) {
         constexpr bool Gradient = StoreGradient || Kinematics || T::gradient;
         const G2pTargets &t = *args.t;
@@ -92,7 +92,7 @@ struct G2pMotionKernel {
                     s.dx[dd][p] = step[d];
             }
         };
-        auto near_face = [&](std::size_t p) __attribute__((noinline)) {
+        auto near_face = [&](std::size_t p) __attribute__((always_inline)) {
             body(std::true_type{}, p);
         };
         auto points = [&](std::size_t begin, std::size_t end) __attribute__((always_inline)) {
@@ -100,7 +100,7 @@ struct G2pMotionKernel {
                 if (St::interior(g, s, p)) [[likely]]
                     body(std::false_type{}, p);
                 else
-                    near_face(p);
+                    OutOfLine<I>::call(near_face, p);
             }
         };
         if constexpr (Kinematics) {
@@ -142,7 +142,7 @@ struct G2pGradientKernel {
         double move_dt;
         std::size_t set, begin, end;
     };
-    template <class Lanes>
+    template <class Lanes, Isa I>
     [[gnu::always_inline]] static void run(const Args &args) {
         const G2pTargets &t = *args.t;
         const GridGeometry &g = t.geo;
@@ -178,14 +178,14 @@ struct G2pGradientKernel {
         // As in the motion kernel: the uniform kernel inline, the clamped
         // one out of line (a stencil evaluation left to the compiler was not
         // inlined for the cubic B-spline: 8 % of a USAVG step in a call).
-        auto near_face = [&](std::size_t p) __attribute__((noinline)) {
+        auto near_face = [&](std::size_t p) __attribute__((always_inline)) {
             body(std::true_type{}, p);
         };
         for (std::size_t p = args.begin; p < args.end; ++p) {
             if (St::interior(g, s, p)) [[likely]]
                 body(std::false_type{}, p);
             else
-                near_face(p);
+                OutOfLine<I>::call(near_face, p);
         }
     }
 };

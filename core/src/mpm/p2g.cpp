@@ -13,7 +13,7 @@ namespace {
 
 // The particles [begin, end) of set s (indices), with the node-record
 // arithmetic in L (stencil.hpp).
-template <class L, int D, class S, bool Mass, bool Momentum, bool Affine, bool Forces>
+template <class L, Isa I, int D, class S, bool Mass, bool Momentum, bool Affine, bool Forces>
 [[gnu::always_inline]] inline void p2g_particles(const P2gSources &src, double *acc,
                                                  const ParticleSet &s, const std::uint32_t *begin,
                                                  const std::uint32_t *end) {
@@ -69,13 +69,15 @@ template <class L, int D, class S, bool Mass, bool Momentum, bool Affine, bool F
                 bits = static_cast<double>(static_cast<std::uint32_t>(bits) | fixed);
             });
     };
-    auto near_face = [&](std::size_t p) __attribute__((noinline)) { body(std::true_type{}, p); };
+    auto near_face = [&](std::size_t p) __attribute__((always_inline)) {
+        body(std::true_type{}, p);
+    };
     for (const std::uint32_t *k = begin; k != end; ++k) {
         const std::size_t p = *k;
         if (St::interior(g, s, p)) [[likely]]
             body(std::false_type{}, p);
         else
-            near_face(p);
+            OutOfLine<I>::call(near_face, p);
     }
 }
 
@@ -87,9 +89,10 @@ struct P2gKernel {
         const ParticleSet *s;
         const std::uint32_t *begin, *end;
     };
-    template <class L>
+    template <class L, Isa I>
     [[gnu::always_inline]] static void run(const Args &a) {
-        p2g_particles<L, D, S, Mass, Momentum, Affine, Forces>(*a.src, a.acc, *a.s, a.begin, a.end);
+        p2g_particles<L, I, D, S, Mass, Momentum, Affine, Forces>(*a.src, a.acc, *a.s, a.begin,
+                                                                  a.end);
     }
 };
 

@@ -252,22 +252,52 @@ struct Stencil {
 };
 
 // The versions of a kernel for each instruction set (isa.hpp): the same
-// source, Impl::run<L>(args), inlined into one function per target and
+// source, Impl::run<L, I>(args), inlined into one function per target and
 // compiled for it. A pass picks one per call (an indirect call per block
 // of particles, never per particle).
 template <class Impl>
 struct IsaVersions {
     using Args = typename Impl::Args;
     using Fn = void (*)(const Args &);
-    static void generic(const Args &a) { Impl::template run<Arr8>(a); }
-    TALUS_TARGET_AVX2 static void avx2(const Args &a) { Impl::template run<Vec8>(a); }
-    TALUS_TARGET_AVX512 static void avx512(const Args &a) { Impl::template run<Vec8>(a); }
+    static void generic(const Args &a) { Impl::template run<Arr8, Isa::generic>(a); }
+    TALUS_TARGET_AVX2 static void avx2(const Args &a) { Impl::template run<Vec8, Isa::avx2>(a); }
+    TALUS_TARGET_AVX512 static void avx512(const Args &a) {
+        Impl::template run<Vec8, Isa::avx512>(a);
+    }
     static Fn pick(Isa isa) {
         if constexpr (TALUS_HAS_ISA_VERSIONS) {
             if (isa == Isa::avx512) return &avx512;
             if (isa == Isa::avx2) return &avx2;
         }
         return &generic;
+    }
+};
+
+// Calls f(p) in a function of its own compiled for instruction set I: the
+// kernels' rare path (a particle near a face) kept out of their loop. A
+// function does not inherit its caller's target: a plain noinline lambda in
+// the AVX-512 kernel was compiled for the baseline, where Vec8 is lowered
+// through the stack, and the 6 % of the 3D block's particles next to a face
+// took a third of the P2G and G2P time. f must be always_inline.
+template <Isa I>
+struct OutOfLine {
+    template <class F>
+    [[gnu::noinline]] static void call(const F &f, std::size_t p) {
+        f(p);
+    }
+};
+template <>
+struct OutOfLine<Isa::avx2> {
+    template <class F>
+    [[gnu::noinline]] TALUS_TARGET_AVX2 static void call(const F &f, std::size_t p) {
+        f(p);
+    }
+};
+template <>
+struct OutOfLine<Isa::avx512> {
+    template <class F>
+    [[gnu::noinline]] TALUS_TARGET_AVX512 static void call(const F &f, std::size_t p) {
+        f(p);
     }
 };
 
