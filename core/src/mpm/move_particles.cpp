@@ -19,104 +19,170 @@ bool Domain::contains(const ParticleSet &s, std::size_t p, int dim) const {
     return in;
 }
 
-namespace {
-constexpr std::size_t kNone = static_cast<std::size_t>(-1);
-struct Partial {
-    double speed = 0.0, depth = 0.0;
-    long outside = 0, moved = 0, held = 0, descents = 0;
-    // The first and last particle this partial saw, with their cells: a
-    // thread's particles are one contiguous range (a static schedule), so
-    // descents are counted inside it as the loop runs and across the
-    // boundaries between ranges when the partials are merged in thread
-    // order, in the same pass (no second loop and its barrier).
-    std::size_t first = kNone, last = kNone;
-    std::uint32_t first_cell = 0, last_cell = 0;
-    void saw(std::size_t p, std::uint32_t cell) {
-        if (last != kNone && p == last + 1) {
-            if (cell < last_cell) ++descents;
-        } else if (first == kNone) {
-            first = p;
-            first_cell = cell;
-        }
-        last = p;
-        last_cell = cell;
-    }
-    void merge(const Partial &o) {
-        speed = std::max(speed, o.speed);
-        depth = std::max(depth, o.depth);
-        outside += o.outside;
-        moved += o.moved;
-        held += o.held;
-        descents += o.descents;
-        if (o.first == kNone) return;
-        if (last != kNone && o.first == last + 1 && o.first_cell < last_cell) ++descents;
-        if (first == kNone) {
-            first = o.first;
-            first_cell = o.first_cell;
-        }
-        last = o.last;
-        last_cell = o.last_cell;
-    }
-};
-} // namespace
+using Partial = StepEndBlocks::Partial;
 
-StepEnd move_particles(std::vector<ParticleSet> &sets, const GridGeometry &geo,
-                       const Domain &domain, Ordering &order, PositionStep step) {
-    Partial total;
-    const int D = geo.dim;
-    const bool add = step == PositionStep::add_dx;
+void Partial::saw(std::size_t p, std::uint32_t cell) {
+    if (last != kNone && p == last + 1) {
+        if (cell < last_cell) ++descents;
+    } else if (first == kNone) {
+        first = p;
+        first_cell = cell;
+    }
+    last = p;
+    last_cell = cell;
+}
+
+void Partial::merge(const Partial &o) {
+    speed = std::max(speed, o.speed);
+    depth = std::max(depth, o.depth);
+    outside += o.outside;
+    moved += o.moved;
+    held += o.held;
+    descents += o.descents;
+    if (o.first == kNone) return;
+    if (last != kNone && o.first == last + 1 && o.first_cell < last_cell) ++descents;
+    if (first == kNone) {
+        first = o.first;
+        first_cell = o.first_cell;
+    }
+    last = o.last;
+    last_cell = o.last_cell;
+}
+
+void StepEndBlocks::begin(std::vector<ParticleSet> &sets, const GridGeometry &geo,
+                          const Domain &domain, Ordering &order, PositionStep step,
+                          std::size_t block) {
+    sets_ = &sets;
+    geo_ = geo;
+    domain_ = domain;
+    order_ = &order;
+    add_ = step == PositionStep::add_dx;
+    block_ = std::max<std::size_t>(1, block);
+    marks_.resize(sets.size());
+    partials_.resize(sets.size());
     for (std::size_t si = 0; si < sets.size(); ++si) {
-        ParticleSet &s = sets[si];
-        const Ordering::Marks mark = order.marks(si, s.n);
+        marks_[si] = order.marks(si, sets[si].n);
+        // Every block is written by its pass: no reset needed, only the size.
+        partials_[si].resize((sets[si].n + block_ - 1) / block_);
+    }
+}
+
+namespace {
+
+// The body of StepEndBlocks::block for one dimension and position step:
+// the axes unrolled, the face tests without branches, and every bound in
+// a local (the stores to the particle arrays would otherwise make the
+// compiler reload the members they might alias).
+template <int D, bool Add>
+void end_block(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &geo,
+               const Domain &domain, const Ordering &order, std::size_t begin, std::size_t count,
+               Partial &r) {
+    double lo[D], hi[D], origin[D];
+    bool closed_lo[D], closed_hi[D];
+    int cells[D];
+    double *x[D];
+    const double *dx[D], *v[D];
+    for (int d = 0; d < D; ++d) {
+        const std::size_t dd = static_cast<std::size_t>(d);
+        lo[d] = domain.lo[dd];
+        hi[d] = domain.hi[dd];
+        closed_lo[d] = domain.closed_lo[dd];
+        closed_hi[d] = domain.closed_hi[dd];
+        origin[d] = geo.origin[dd];
+        cells[d] = geo.cells[dd];
+        x[d] = s.x[dd].data();
+        dx[d] = Add ? s.dx[dd].data() : nullptr;
+        v[d] = s.v[dd].data();
+    }
+    const double inv_h = geo.inv_h;
+    const int axis = order.axis();
+    const double *c = s.c.data();
+    double speed = r.speed, depth = r.depth;
+    long outside = 0, held = 0, moved = 0;
+    for (std::size_t p = begin; p < begin + count; ++p) {
         // The grid's normal velocity at a closed face is zero (clamped
         // basis), so the motion from the grid cannot carry a particle
         // through it by more than the round-off of the position sum (or a
         // step above the stability limit); what does is put back onto the
         // face (and counted), so that "outside" means through a free face.
-        const Partial part = par::reduce<Partial>(s.n, [&](std::size_t p, Partial &r) {
-            bool in = true;
-            double v2 = 0.0;
-            for (int d = 0; d < D; ++d) {
-                const std::size_t dd = static_cast<std::size_t>(d);
-                double x = add ? s.x[dd][p] + s.dx[dd][p] : s.x[dd][p];
-                if (domain.closed_lo[dd] && x < domain.lo[dd]) {
-                    r.depth = std::max(r.depth, domain.lo[dd] - x);
-                    x = domain.lo[dd];
-                    ++r.held;
-                } else if (domain.closed_hi[dd] && x > domain.hi[dd]) {
-                    r.depth = std::max(r.depth, x - domain.hi[dd]);
-                    x = domain.hi[dd];
-                    ++r.held;
-                }
-                s.x[dd][p] = x;
-                in = in && x >= domain.lo[dd] && x <= domain.hi[dd];
-                v2 += s.v[dd][p] * s.v[dd][p];
-            }
-            r.outside += in ? 0 : 1;
-            r.speed = std::max(r.speed, s.c[p] + std::sqrt(v2));
-            // The cell, and from it the slab, with one floor per axis.
-            std::size_t ci = 0, stride = 1;
-            int sl = 0;
-            for (int d = 0; d < D; ++d) {
-                const int c = geo.cell(d, s.x[static_cast<std::size_t>(d)][p]);
-                ci += static_cast<std::size_t>(c) * stride;
-                stride *= static_cast<std::size_t>(geo.cells[static_cast<std::size_t>(d)]);
-                if (d == order.axis()) sl = order.slab_of_cell(c);
-            }
-            r.moved += sl != mark.slab[p] ? 1 : 0;
-            mark.slab[p] = sl;
-            mark.cell[p] = static_cast<std::uint32_t>(ci);
-            // Particles in a lower cell than their predecessor in memory.
-            r.saw(p, static_cast<std::uint32_t>(ci));
-        });
+        bool in = true;
+        double v2 = 0.0;
+        std::size_t ci = 0, stride = 1;
+        int sl = 0;
+        for (int d = 0; d < D; ++d) {
+            double xd = Add ? x[d][p] + dx[d][p] : x[d][p];
+            const bool below = closed_lo[d] && xd < lo[d];
+            const bool above = closed_hi[d] && xd > hi[d];
+            depth = std::max(depth, below ? lo[d] - xd : above ? xd - hi[d] : 0.0);
+            held += below || above ? 1 : 0;
+            xd = below ? lo[d] : above ? hi[d] : xd;
+            x[d][p] = xd;
+            in = in && xd >= lo[d] && xd <= hi[d];
+            v2 += v[d][p] * v[d][p];
+            // The cell, and from it the slab (GridGeometry::cell).
+            const int cd =
+                std::clamp(static_cast<int>(fast_floor((xd - origin[d]) * inv_h)), 0, cells[d] - 1);
+            ci += static_cast<std::size_t>(cd) * stride;
+            stride *= static_cast<std::size_t>(cells[d]);
+            if (d == axis) sl = order.slab_of_cell(cd);
+        }
+        outside += in ? 0 : 1;
+        speed = std::max(speed, c[p] + std::sqrt(v2));
+        moved += sl != mark.slab[p] ? 1 : 0;
+        mark.slab[p] = sl;
+        mark.cell[p] = static_cast<std::uint32_t>(ci);
+        // Particles in a lower cell than their predecessor in memory.
+        r.saw(p, static_cast<std::uint32_t>(ci));
+    }
+    r.speed = speed;
+    r.depth = depth;
+    r.outside += outside;
+    r.held += held;
+    r.moved += moved;
+}
+
+} // namespace
+
+void StepEndBlocks::block(std::size_t set, std::size_t begin, std::size_t count) {
+    ParticleSet &s = (*sets_)[set];
+    Partial r;
+    auto run = [&]<int D, bool Add>() {
+        end_block<D, Add>(s, marks_[set], geo_, domain_, *order_, begin, count, r);
+    };
+    if (geo_.dim == 2)
+        add_ ? run.template operator()<2, true>() : run.template operator()<2, false>();
+    else
+        add_ ? run.template operator()<3, true>() : run.template operator()<3, false>();
+    partials_[set][begin / block_] = r;
+}
+
+StepEnd StepEndBlocks::finish() {
+    Partial total;
+    for (const std::vector<Partial> &set : partials_) {
+        Partial part;
+        for (const Partial &b : set)
+            part.merge(b);
         // Sets are counted apart (no descent across two sets' arrays): the
         // set's range is forgotten before it joins the total.
-        Partial counts = part;
-        counts.first = counts.last = kNone;
-        total.merge(counts);
+        part.first = part.last = Partial::kNone;
+        total.merge(part);
     }
-    order.marked(total.moved, static_cast<double>(total.descents));
+    order_->marked(total.moved, static_cast<double>(total.descents));
     return {total.speed, total.held, total.depth, total.outside};
+}
+
+StepEnd move_particles(std::vector<ParticleSet> &sets, const GridGeometry &geo,
+                       const Domain &domain, Ordering &order, PositionStep step,
+                       StepEndBlocks &blocks) {
+    constexpr std::size_t kBlock = 1024;
+    blocks.begin(sets, geo, domain, order, step, kBlock);
+    for (std::size_t si = 0; si < sets.size(); ++si) {
+        const std::size_t n = sets[si].n;
+        par::for_each_block((n + kBlock - 1) / kBlock, [&](std::size_t b) {
+            blocks.block(si, b * kBlock, std::min(kBlock, n - b * kBlock));
+        });
+    }
+    return blocks.finish();
 }
 
 Leaving collect_leaving(std::vector<ParticleSet> &sets, const Domain &domain, int dim, bool remove,

@@ -9,6 +9,8 @@
 #include <talus/mpm/particles.hpp>
 
 #include <array>
+#include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -33,8 +35,52 @@ struct StepEnd {
     long outside = 0; // particles outside the domain (through a free face)
 };
 
+// The step's end, block by block: begin() before the pass, block() for
+// every block of every set (from any thread, each block once, in any
+// order), finish() after it. Each block keeps its own partial result and
+// finish() merges them in memory order, so the counts and the maximum are
+// the same whatever the thread count and the schedule: the fused USL pass
+// (g2p.hpp) runs block() on a block while it is still in cache, the other
+// schemes in a pass of its own (move_particles).
+class StepEndBlocks {
+  public:
+    // Partial results of one block of points: the maximum speed, the
+    // points held at a closed face, those outside, those that changed slab,
+    // and the first and last point with their cells (descents within the
+    // block are counted as it runs, those across blocks when they merge).
+    struct Partial {
+        static constexpr std::size_t kNone = static_cast<std::size_t>(-1);
+        double speed = 0.0, depth = 0.0;
+        long outside = 0, moved = 0, held = 0, descents = 0;
+        std::size_t first = kNone, last = kNone;
+        std::uint32_t first_cell = 0, last_cell = 0;
+        void saw(std::size_t p, std::uint32_t cell);
+        void merge(const Partial &o);
+    };
+
+    // `block`: the points per block() call (the last of a set may be
+    // shorter); block() runs with positions already moved or x + dx.
+    void begin(std::vector<ParticleSet> &sets, const GridGeometry &geo, const Domain &domain,
+               Ordering &order, PositionStep step, std::size_t block);
+    void block(std::size_t set, std::size_t begin, std::size_t count);
+    StepEnd finish();
+    std::size_t block_size() const { return block_; }
+
+  private:
+    std::vector<ParticleSet> *sets_ = nullptr;
+    GridGeometry geo_;
+    Domain domain_;
+    Ordering *order_ = nullptr;
+    bool add_ = false;
+    std::size_t block_ = 1;
+    std::vector<Ordering::Marks> marks_;         // per set
+    std::vector<std::vector<Partial>> partials_; // per set, per block (kept between steps)
+};
+
+// The step's end as a pass of its own (the schemes other than fused USL).
 StepEnd move_particles(std::vector<ParticleSet> &sets, const GridGeometry &geo,
-                       const Domain &domain, Ordering &order, PositionStep step);
+                       const Domain &domain, Ordering &order, PositionStep step,
+                       StepEndBlocks &blocks);
 
 // The particles outside the domain: removed (policy remove) or kept in
 // place; the first few described for a report. Returns how many there were.

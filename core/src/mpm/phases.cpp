@@ -9,6 +9,8 @@
 
 #include <fmt/format.h>
 
+#include <chrono>
+
 namespace talus {
 
 void Simulation::Impl::p2g_momentum() {
@@ -54,23 +56,43 @@ void Simulation::Impl::g2p_velocity(double dt, bool store_gradient) {
 
 namespace {
 
-// The fused G2P's blocks go straight into the material update.
+// The fused G2P's blocks go straight into the material update, then to the
+// step's end. The time each thread spends in the end blocks is kept apart
+// (one cache line each) so that the phases' shares stay those of the split
+// pipeline.
 class MaterialBlocks final : public GradientBlocks {
   public:
-    MaterialBlocks(MaterialUpdate &m, std::vector<ParticleSet> &sets, const Increment &inc,
-                   UpdateFailures &failures)
-        : m_(m), sets_(sets), inc_(inc), failures_(failures) {}
+    MaterialBlocks(MaterialUpdate &m, StepEndBlocks &ends, std::vector<ParticleSet> &sets,
+                   const Increment &inc, UpdateFailures &failures)
+        : m_(m), ends_(ends), sets_(sets), inc_(inc), failures_(failures),
+          seconds_(static_cast<std::size_t>(par::max_threads())) {}
     std::size_t block_size() const override { return m_.block_size(); }
     double *buffer() override { return m_.gradient_buffer(); }
     void take(std::size_t set, std::size_t begin, std::size_t count) override {
         m_.block(sets_[set], set, begin, count, m_.gradient_buffer(), 9, inc_, failures_);
+        const auto t0 = std::chrono::steady_clock::now();
+        ends_.block(set, begin, count);
+        seconds_[static_cast<std::size_t>(par::thread_index())].s +=
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    }
+    // The end blocks' time, per thread on average.
+    double end_seconds() const {
+        double sum = 0.0;
+        for (const Seconds &s : seconds_)
+            sum += s.s;
+        return sum / static_cast<double>(seconds_.size());
     }
 
   private:
+    struct alignas(64) Seconds {
+        double s = 0.0;
+    };
     MaterialUpdate &m_;
+    StepEndBlocks &ends_;
     std::vector<ParticleSet> &sets_;
     const Increment &inc_;
     UpdateFailures &failures_;
+    std::vector<Seconds> seconds_;
 };
 
 } // namespace
@@ -78,17 +100,24 @@ class MaterialBlocks final : public GradientBlocks {
 void Simulation::Impl::g2p_velocity_and_update(double t, double dt) {
     UpdateFailures failures;
     materials.prepare(sets);
+    step_ends.begin(sets, grid.geo, domain, order, PositionStep::already_moved,
+                    materials.block_size());
     const Increment inc{t, dt, step + 1, nullptr, nullptr};
-    MaterialBlocks blocks(materials, sets, inc, failures);
+    MaterialBlocks blocks(materials, step_ends, sets, inc, failures);
     {
         auto tm = timer(Phase::g2p);
         talus::g2p_velocity_and_update(g2p_targets(), grid.vel.data(), dt, velocity_motion, blocks);
     }
-    // The material update's share of the fused pass, as its own phase.
-    const double in_blocks = materials.collect();
-    phase_seconds[static_cast<std::size_t>(Phase::g2p)] -= in_blocks;
-    phase_seconds[static_cast<std::size_t>(Phase::material_update)] += in_blocks;
+    // The material update's and the step end's shares of the fused pass, as
+    // their own phases.
+    const double in_blocks = materials.collect(), in_ends = blocks.end_seconds();
+    auto &ph = phase_seconds;
+    ph[static_cast<std::size_t>(Phase::g2p)] -= in_blocks + in_ends;
+    ph[static_cast<std::size_t>(Phase::material_update)] += in_blocks;
+    ph[static_cast<std::size_t>(Phase::move_particles)] += in_ends;
     update_failed(failures, t);
+    auto tm = timer(Phase::move_particles);
+    step_ended(step_ends.finish());
 }
 
 void Simulation::Impl::g2p_gradient(const double *field, std::size_t offset,
@@ -124,7 +153,10 @@ void Simulation::Impl::update_failed(const UpdateFailures &f, double t) {
 
 void Simulation::Impl::move_particles(PositionStep how) {
     auto tm = timer(Phase::move_particles);
-    const StepEnd end = talus::move_particles(sets, grid.geo, domain, order, how);
+    step_ended(talus::move_particles(sets, grid.geo, domain, order, how, step_ends));
+}
+
+void Simulation::Impl::step_ended(const StepEnd &end) {
     max_speed = end.max_speed;
     held_at_faces += end.held;
     held_depth = std::max(held_depth, end.held_depth);

@@ -19,14 +19,13 @@ void Simulation::Impl::usl(double t, double dt) {
     move_particles(PositionStep::add_dx);
 }
 
-// USL with the kinematics and material update done block by block inside
-// the G2P loop while the block's data are in cache: no stored gradient, no
-// position step, one pass over the particles less.
+// USL with the kinematics, the material update and the step's end done
+// block by block inside the G2P loop while the block's data are in cache:
+// no stored gradient, no position step, two passes over the particles less.
 void Simulation::Impl::usl_fused(double t, double dt) {
     p2g_momentum_and_forces();
     grid_update(t, dt);
     g2p_velocity_and_update(t, dt);
-    move_particles(PositionStep::already_moved);
 }
 
 // Update stress first: L from the mapped start velocities v, which also

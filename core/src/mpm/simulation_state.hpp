@@ -71,6 +71,7 @@ struct Simulation::Impl {
     Ordering order;
     Loads loads;
     Domain domain;
+    StepEndBlocks step_ends; // the step's end pass, or its blocks in the fused USL pass
     MaterialUpdate materials;
     DilationCells dilation;
     StepVariant variant;
@@ -109,6 +110,8 @@ struct Simulation::Impl {
     void grid_update(double t, double dt);
     void remapped_velocity(double t_end);
     void g2p_velocity(double dt, bool store_gradient);
+    // Fused USL: G2P, kinematics, material update and the step's end, block
+    // by block.
     void g2p_velocity_and_update(double t, double dt);
     void g2p_gradient(const double *field, std::size_t offset, std::size_t move_offset,
                       double move_dt);
@@ -116,6 +119,9 @@ struct Simulation::Impl {
     // sums, with cell-averaged dilation).
     void material_update(double t, double dt);
     void move_particles(PositionStep step);
+    // What follows either: the next dt's speed, the faces' counts, the
+    // particles that left the grid.
+    void step_ended(const StepEnd &end);
 
     const Conditions &conditions() const { return stages[stage].conditions; }
     // The changes a stage makes when it begins (stages.cpp).

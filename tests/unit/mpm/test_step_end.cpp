@@ -1,0 +1,189 @@
+// The step's end pass by blocks (core/src/mpm/move_particles.hpp) against
+// its definition written as one plain loop over the particles: positions
+// put back onto closed faces (counted, with the deepest overshoot), the
+// particles outside the domain, max(c + |v|), each particle's cell and
+// slab, the slab changes, and the descents of the cell order in memory
+// (within each set, none across sets). The blocks may run in any order and
+// be of any size (the fused USL pass runs them from whichever thread takes
+// them): every result must be the loop's exactly, integers and the maximum
+// alike, since none of them involves a sum in floating point.
+#include "move_particles.hpp"
+#include "ordering.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <numeric>
+#include <random>
+#include <vector>
+
+namespace {
+
+using talus::Domain;
+using talus::GridGeometry;
+using talus::Ordering;
+using talus::ParticleSet;
+using talus::PositionStep;
+using talus::StepEnd;
+using talus::StepEndBlocks;
+
+// A 2D grid of 40 x 24 cells of 0.05 m from (-1, 0.5); closed x- and y-
+// faces, free x+ and y+.
+GridGeometry geometry() {
+    GridGeometry g;
+    g.dim = 2;
+    g.h = 0.05;
+    g.inv_h = 1.0 / g.h;
+    g.origin = {-1.0, 0.5, 0.0};
+    g.cells = {40, 24, 1};
+    return g;
+}
+
+Domain domain_of(const GridGeometry &g) {
+    Domain d;
+    for (std::size_t a = 0; a < 2; ++a) {
+        d.lo[a] = g.origin[a];
+        d.hi[a] = g.origin[a] + g.cells[a] * g.h;
+    }
+    d.closed_lo = {true, true, false};
+    return d;
+}
+
+// Two sets of particles, mostly in cell order with disorder mixed in, some
+// stepping through the closed faces (held), some through the free ones
+// (outside).
+std::vector<ParticleSet> particles(const GridGeometry &g, std::uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    std::vector<ParticleSet> sets(2);
+    const std::size_t n[2] = {1500, 777};
+    for (std::size_t si = 0; si < 2; ++si) {
+        ParticleSet &s = sets[si];
+        s.dim = 2;
+        s.has_C = s.has_divv = s.has_lp = s.has_L = false;
+        s.resize(n[si]);
+        for (std::size_t p = 0; p < s.n; ++p) {
+            // Sorted along y by index, x random: descents inside rows.
+            const double fy = (static_cast<double>(p) + u(rng)) / static_cast<double>(s.n);
+            s.x[0][p] = g.origin[0] + u(rng) * g.cells[0] * g.h;
+            s.x[1][p] = g.origin[1] + fy * g.cells[1] * g.h;
+            const double kick = u(rng);
+            for (std::size_t d = 0; d < 2; ++d)
+                s.dx[d][p] = (u(rng) - 0.5) * 0.02 + (kick < 0.05 ? -0.3 : kick > 0.95 ? 0.3 : 0.0);
+            for (std::size_t d = 0; d < 2; ++d)
+                s.v[d][p] = (u(rng) - 0.5) * 4.0;
+            s.c[p] = 50.0 + 10.0 * u(rng);
+        }
+    }
+    return sets;
+}
+
+struct Expected {
+    StepEnd end;
+    long moved = 0, descents = 0;
+    std::vector<std::vector<double>> x[2];
+    std::vector<std::vector<std::int32_t>> slab;
+};
+
+// The definition, one particle after the other.
+Expected reference(std::vector<ParticleSet> sets, const GridGeometry &g, const Domain &dom,
+                   const Ordering &order) {
+    Expected e;
+    for (std::size_t d = 0; d < 2; ++d)
+        e.x[d].resize(sets.size());
+    e.slab.resize(sets.size());
+    for (std::size_t si = 0; si < sets.size(); ++si) {
+        ParticleSet &s = sets[si];
+        long last_cell = -1;
+        for (std::size_t p = 0; p < s.n; ++p) {
+            bool in = true;
+            long cell[2];
+            for (std::size_t d = 0; d < 2; ++d) {
+                double x = s.x[d][p] + s.dx[d][p];
+                if (dom.closed_lo[d] && x < dom.lo[d]) {
+                    e.end.held_depth = std::max(e.end.held_depth, dom.lo[d] - x);
+                    ++e.end.held;
+                    x = dom.lo[d];
+                }
+                in = in && x >= dom.lo[d] && x <= dom.hi[d];
+                e.x[d][si].push_back(x);
+                cell[d] = std::clamp(static_cast<long>(std::floor((x - g.origin[d]) / g.h)), 0L,
+                                     static_cast<long>(g.cells[d]) - 1);
+            }
+            e.end.outside += in ? 0 : 1;
+            e.end.max_speed = std::max(
+                e.end.max_speed, s.c[p] + std::sqrt(s.v[0][p] * s.v[0][p] + s.v[1][p] * s.v[1][p]));
+            const long ci = cell[0] + cell[1] * g.cells[0];
+            if (p > 0 && ci < last_cell) ++e.descents;
+            last_cell = ci;
+            const int slab =
+                std::min(static_cast<int>(cell[order.axis()]) / 4, order.n_slabs() - 1);
+            e.slab[si].push_back(slab);
+            ++e.moved; // the first pass: no slab before it
+        }
+    }
+    return e;
+}
+
+void expect_equal(const Expected &e, const StepEnd &got, const std::vector<ParticleSet> &sets,
+                  const Ordering &order) {
+    EXPECT_EQ(got.held, e.end.held);
+    EXPECT_EQ(got.held_depth, e.end.held_depth);
+    EXPECT_EQ(got.outside, e.end.outside);
+    EXPECT_EQ(got.max_speed, e.end.max_speed);
+    EXPECT_EQ(order.out_of_order(), static_cast<double>(e.descents));
+    EXPECT_EQ(order.slabs_changed(), e.moved > 0);
+    for (std::size_t si = 0; si < sets.size(); ++si) {
+        EXPECT_EQ(order.slabs(si), e.slab[si]);
+        for (std::size_t d = 0; d < 2; ++d)
+            for (std::size_t p = 0; p < sets[si].n; ++p)
+                ASSERT_EQ(sets[si].x[d][p], e.x[d][si][p]) << "set " << si << " particle " << p;
+    }
+}
+
+TEST(StepEnd, BlocksInAnyOrderAndOfAnySizeGiveThePlainLoopsResults) {
+    const GridGeometry g = geometry();
+    const Domain dom = domain_of(g);
+    std::mt19937 shuffle(7);
+    for (const std::size_t block :
+         {std::size_t{1}, std::size_t{7}, std::size_t{128}, std::size_t{5000}}) {
+        for (int order_kind = 0; order_kind < 3; ++order_kind) {
+            std::vector<ParticleSet> sets = particles(g, 11);
+            Ordering order(g, sets.size());
+            const Expected e = reference(particles(g, 11), g, dom, order);
+            // The test must be able to fail: the cases hold, descend and
+            // leave.
+            ASSERT_GT(e.end.held, 10);
+            ASSERT_GT(e.end.outside, 10);
+            ASSERT_GT(e.descents, 100);
+            StepEndBlocks ends;
+            ends.begin(sets, g, dom, order, PositionStep::add_dx, block);
+            std::vector<std::pair<std::size_t, std::size_t>> jobs;
+            for (std::size_t si = 0; si < sets.size(); ++si)
+                for (std::size_t b = 0; b < sets[si].n; b += block)
+                    jobs.emplace_back(si, b);
+            if (order_kind == 1) std::reverse(jobs.begin(), jobs.end());
+            if (order_kind == 2) std::shuffle(jobs.begin(), jobs.end(), shuffle);
+            for (const auto &[si, b] : jobs)
+                ends.block(si, b, std::min(block, sets[si].n - b));
+            SCOPED_TRACE(testing::Message() << "block " << block << ", order " << order_kind);
+            expect_equal(e, ends.finish(), sets, order);
+        }
+    }
+}
+
+TEST(StepEnd, ThePassOfItsOwnGivesThePlainLoopsResults) {
+    const GridGeometry g = geometry();
+    const Domain dom = domain_of(g);
+    std::vector<ParticleSet> sets = particles(g, 23);
+    Ordering order(g, sets.size());
+    const Expected e = reference(particles(g, 23), g, dom, order);
+    StepEndBlocks ends;
+    expect_equal(e, talus::move_particles(sets, g, dom, order, PositionStep::add_dx, ends), sets,
+                 order);
+}
+
+} // namespace
