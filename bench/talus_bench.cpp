@@ -1,7 +1,8 @@
 // talus_bench: particle-steps per second of the explicit MPM cycle, one JSON
 // line per case. Measures; asserts nothing (see bench/README.md).
 //
-//   talus_bench [--steps N] [--repeat R] [--case NAME] [--threads T[,T...]] [--profile]
+//   talus_bench [--steps N] [--repeat R] [--case NAME] [--threads T[,T...]] [--busy N]
+//               [--profile]
 #include <talus/input/scenario_yaml.hpp>
 #include <talus/input/yaml_input.hpp>
 #include <talus/mpm/simulation.hpp>
@@ -9,7 +10,11 @@
 #include <fmt/format.h>
 
 #include <omp.h>
+#include <signal.h>
+#include <sys/prctl.h>
 #include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -30,6 +35,40 @@ constexpr const char *kMaterialPath = "plugin";
 #endif
 
 namespace {
+
+// CPU-bound processes that run beside the cases (--busy N): what a 2-thread
+// run does when another program takes a core. Each child spins until the
+// benchmark ends (killed then, or with it if the benchmark dies).
+class BusyProcesses {
+  public:
+    explicit BusyProcesses(int n) {
+        for (int k = 0; k < n; ++k) {
+            const pid_t pid = fork();
+            if (pid < 0) {
+                std::perror("talus_bench: fork");
+                std::exit(1);
+            }
+            if (pid == 0) {
+                prctl(PR_SET_PDEATHSIG, SIGKILL);
+                volatile unsigned long spin = 0;
+                for (;;)
+                    spin = spin + 1;
+            }
+            children_.push_back(pid);
+        }
+    }
+    ~BusyProcesses() {
+        for (const pid_t pid : children_) {
+            kill(pid, SIGKILL);
+            waitpid(pid, nullptr, 0);
+        }
+    }
+    BusyProcesses(const BusyProcesses &) = delete;
+    BusyProcesses &operator=(const BusyProcesses &) = delete;
+
+  private:
+    std::vector<pid_t> children_;
+};
 
 struct Case {
     std::string name;
@@ -145,6 +184,7 @@ int main(int argc, char **argv) {
     int steps = 25, repeat = 3;
     std::vector<int> thread_counts{0}; // 0: OpenMP's default
     bool profile = false;
+    int busy = 0;
     std::string only;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
@@ -178,11 +218,21 @@ int main(int argc, char **argv) {
             only = next();
         else if (a == "--profile")
             profile = true;
-        else {
+        else if (a == "--busy") {
+            busy = std::atoi(next().c_str());
+            if (busy < 0) {
+                std::fprintf(stderr, "talus_bench: --busy expects a count >= 0\n");
+                return 2;
+            }
+        } else {
             std::fprintf(stderr, "usage: talus_bench [--steps N] [--repeat R] [--case NAME] "
-                                 "[--threads T[,T...]] [--profile]\n");
+                                 "[--threads T[,T...]] [--busy N] [--profile]\n");
             return 2;
         }
+    }
+    if (steps < 1 || repeat < 1) {
+        std::fprintf(stderr, "talus_bench: --steps and --repeat expect counts >= 1\n");
+        return 2;
     }
     // About 1M particles each: 3D 100^3 (2x2x2 per cell), 2D 1000^2 (2x2).
     // The odd case has a particle count with no power-of-two factors, so
@@ -228,6 +278,7 @@ int main(int argc, char **argv) {
         std::fprintf(stderr, "\n");
         return 2;
     }
+    const BusyProcesses beside(busy);
     try {
         if (only.empty() || only == "memory_bandwidth")
             for (const int threads : thread_counts)
@@ -243,7 +294,7 @@ int main(int argc, char **argv) {
                 talus::Simulation sim(sc, so);
                 for (int w = 0; w < 2; ++w)
                     sim.step(1.0); // warm caches and the allocator
-                double best = 1e300;
+                std::vector<double> times;
                 const long regions0 = talus::Simulation::parallel_regions();
                 for (int r = 0; r < repeat; ++r) {
                     const auto t0 = std::chrono::steady_clock::now();
@@ -252,8 +303,13 @@ int main(int argc, char **argv) {
                     const double sec =
                         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
                             .count();
-                    best = std::min(best, sec);
+                    times.push_back(sec);
                 }
+                std::sort(times.begin(), times.end());
+                const double best = times.front();
+                const std::size_t mid = times.size() / 2;
+                const double median =
+                    times.size() % 2 ? times[mid] : 0.5 * (times[mid - 1] + times[mid]);
                 const double barriers =
                     static_cast<double>(talus::Simulation::parallel_regions() - regions0) /
                     (static_cast<double>(repeat) * steps);
@@ -288,12 +344,15 @@ int main(int argc, char **argv) {
                 }
                 std::printf("{\"case\": \"%s\", \"dim\": %d, \"particles\": %zu, \"steps\": %d, "
                             "\"threads\": %d, \"kernels\": \"%s\", \"material_path\": \"%s\", "
-                            "\"seconds\": %.4f, \"particle_steps_per_second\": %.4g, "
+                            "\"busy_processes\": %d, \"seconds\": %.4f, "
+                            "\"particle_steps_per_second\": %.4g, "
+                            "\"median_particle_steps_per_second\": %.4g, "
                             "\"particle_bytes\": %.0f, \"max_rss_bytes_per_particle\": %.0f, "
                             "\"barriers_per_step\": %.1f, \"phase_shares\": {%s}}\n",
                             c.name.c_str(), c.dim, sim.particle_count(), steps, used,
-                            sim.kernel_isa(), kMaterialPath, best, n * steps / best,
-                            particle_bytes / n, rss / n, barriers, shares.c_str());
+                            sim.kernel_isa(), kMaterialPath, busy, best, n * steps / best,
+                            n * steps / median, particle_bytes / n, rss / n, barriers,
+                            shares.c_str());
                 std::fflush(stdout);
             }
     } catch (const std::exception &e) {
