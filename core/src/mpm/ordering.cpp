@@ -1,6 +1,7 @@
 #include "ordering.hpp"
 
 #include <algorithm>
+#include <cstdint>
 #include <numeric>
 
 namespace talus {
@@ -85,32 +86,61 @@ void Ordering::bin(const std::vector<ParticleSet> &sets) {
     slabs_changed_ = false;
 }
 
-// Reorders each set's particles by cell (a stable sort of the permutation,
-// then every column through one reusable buffer: no second copy of the
-// particles, which would fault in fresh pages every sort).
+namespace {
+
+// Applies the permutation (particle p takes the values particle from[p] had)
+// to one column in place by following its cycles: each value moves once,
+// with room for one particle's values aside. A buffer the size of the
+// column (72 bytes per particle for F) would be resident for the whole run
+// once the first sort had touched it.
+template <class T>
+void permute_in_place(T *a, std::size_t stride, const std::vector<std::uint32_t> &from,
+                      std::vector<bool> &done, std::vector<T> &aside) {
+    const std::size_t n = from.size();
+    done.assign(n, false);
+    aside.resize(stride);
+    for (std::size_t start = 0; start < n; ++start) {
+        if (done[start] || from[start] == start) continue;
+        std::copy_n(a + start * stride, stride, aside.data());
+        std::size_t j = start;
+        for (;;) {
+            done[j] = true;
+            const std::size_t k = from[j];
+            if (k == start) {
+                std::copy_n(aside.data(), stride, a + j * stride);
+                break;
+            }
+            std::copy_n(a + k * stride, stride, a + j * stride);
+            j = k;
+        }
+    }
+}
+
+} // namespace
+
+// Reorders each set's particles by cell: a stable sort of the permutation,
+// then every column permuted in place (permute_in_place).
 void Ordering::sort(std::vector<ParticleSet> &sets) {
-    std::vector<std::size_t> key, perm;
+    std::vector<std::uint32_t> key, from;
+    std::vector<bool> done;
     for (ParticleSet &s : sets) {
         key.resize(s.n);
-        perm.resize(s.n);
+        from.resize(s.n);
         for (std::size_t p = 0; p < s.n; ++p) {
             double x[3] = {s.x[0][p], s.x[1][p], geo_.dim == 3 ? s.x[2][p] : 0.0};
-            key[p] = geo_.cell_index(x);
+            key[p] = static_cast<std::uint32_t>(geo_.cell_index(x));
         }
-        std::iota(perm.begin(), perm.end(), 0);
-        std::stable_sort(perm.begin(), perm.end(),
-                         [&](std::size_t a, std::size_t b) { return key[a] < key[b]; });
+        std::iota(from.begin(), from.end(), 0u);
+        std::stable_sort(from.begin(), from.end(),
+                         [&](std::uint32_t a, std::uint32_t b) { return key[a] < key[b]; });
         bool sorted = true;
         for (std::size_t p = 0; p < s.n && sorted; ++p)
-            sorted = perm[p] == p;
+            sorted = from[p] == p;
         if (sorted) continue;
         s.for_each_column([&](auto &a, std::size_t stride) {
             using T = typename std::decay_t<decltype(a)>::value_type;
-            auto &buf = std::get<std::vector<T>>(sort_buffers_);
-            buf.resize(s.n * stride);
-            for (std::size_t p = 0; p < s.n; ++p)
-                std::copy_n(a.data() + perm[p] * stride, stride, buf.data() + p * stride);
-            std::copy(buf.begin(), buf.end(), a.data());
+            std::vector<T> aside;
+            permute_in_place(a.data(), stride, from, done, aside);
         });
     }
     invalidate();

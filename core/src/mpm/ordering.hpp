@@ -13,7 +13,6 @@
 
 #include <cstddef>
 #include <cstdint>
-#include <tuple>
 #include <vector>
 
 namespace talus {
@@ -76,9 +75,6 @@ class Ordering {
     std::vector<std::size_t> end_scratch_;
     double out_of_order_ = 0.0;
     bool slabs_changed_ = true;
-    std::tuple<std::vector<double>, std::vector<std::int64_t>, std::vector<std::int32_t>,
-               std::vector<std::uint32_t>>
-        sort_buffers_;
 };
 
 } // namespace talus

@@ -1,0 +1,130 @@
+// The particle re-sort (core/src/mpm/ordering.hpp), which permutes every
+// column in place by following the permutation's cycles: afterwards the
+// particles are in cell order, particles of one cell keep their previous
+// relative order (a stable sort), and every value of every column, of any
+// width and type, is still its particle's. Each value is written as a
+// function of the particle's id and the value's place in its row, so that
+// a value left behind, moved twice or taken from a neighbour is seen.
+#include "ordering.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <random>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+namespace {
+
+using talus::GridGeometry;
+using talus::Ordering;
+using talus::ParticleSet;
+
+GridGeometry geometry(int dim) {
+    GridGeometry g;
+    g.dim = dim;
+    g.h = 0.1;
+    g.inv_h = 1.0 / g.h;
+    g.origin = {0.0, 0.0, 0.0};
+    g.cells = {12, 9, dim == 3 ? 7 : 1};
+    return g;
+}
+
+// What the column value of particle `id` at place k of its row must be.
+double expected(std::int64_t id, std::size_t k) {
+    return static_cast<double>(id) * 100.0 + static_cast<double>(k);
+}
+
+// A set of n particles at random places, each column filled by
+// expected(id, k): ids 0..n-1 in memory order before the sort.
+ParticleSet particles(const GridGeometry &g, std::size_t n, std::uint32_t state_size,
+                      std::uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    ParticleSet s;
+    s.dim = g.dim;
+    s.state_size = state_size;
+    s.resize(n);
+    for (std::size_t p = 0; p < n; ++p) {
+        s.id[p] = static_cast<std::int64_t>(p);
+        s.group[p] = static_cast<std::int32_t>(p % 7);
+        s.load_mask[p] = static_cast<std::uint32_t>(p % 5);
+        s.fix_mask[p] = static_cast<std::uint32_t>(p % 3);
+    }
+    s.for_each_named_column([&](const char *name, auto &col, std::size_t stride) {
+        using T = typename std::decay_t<decltype(col)>::value_type;
+        if constexpr (std::is_same_v<T, double>) {
+            const std::string nm = name;
+            if (nm == "x" || nm == "y" || nm == "z") return; // the positions: below
+            for (std::size_t p = 0; p < n; ++p)
+                for (std::size_t k = 0; k < stride; ++k)
+                    col[p * stride + k] = expected(static_cast<std::int64_t>(p), k);
+        }
+    });
+    for (int d = 0; d < g.dim; ++d)
+        for (std::size_t p = 0; p < n; ++p)
+            s.x[static_cast<std::size_t>(d)][p] = u(rng) * g.cells[d] * g.h;
+    return s;
+}
+
+void check_sorted(int dim, std::uint32_t state_size) {
+    const GridGeometry g = geometry(dim);
+    std::vector<ParticleSet> sets;
+    sets.push_back(particles(g, 3001, state_size, 5));
+    sets.push_back(particles(g, 64, state_size, 6));
+    // Keep the positions each id had, to check them after the sort.
+    std::vector<std::vector<std::vector<double>>> position(sets.size());
+    for (std::size_t si = 0; si < sets.size(); ++si)
+        for (int d = 0; d < dim; ++d)
+            position[si].emplace_back(sets[si].x[static_cast<std::size_t>(d)].begin(),
+                                      sets[si].x[static_cast<std::size_t>(d)].end());
+    Ordering order(g, sets.size());
+    order.sort(sets);
+    for (std::size_t si = 0; si < sets.size(); ++si) {
+        ParticleSet &s = sets[si];
+        ASSERT_EQ(s.n, position[si][0].size());
+        std::vector<bool> seen(s.n, false);
+        std::size_t last_cell = 0;
+        std::int64_t last_id = -1;
+        for (std::size_t p = 0; p < s.n; ++p) {
+            const std::int64_t id = s.id[p];
+            ASSERT_GE(id, 0);
+            ASSERT_LT(static_cast<std::size_t>(id), s.n);
+            ASSERT_FALSE(seen[static_cast<std::size_t>(id)]) << "id " << id << " twice";
+            seen[static_cast<std::size_t>(id)] = true;
+            const double x[3] = {s.x[0][p], s.x[1][p], dim == 3 ? s.x[2][p] : 0.0};
+            for (int d = 0; d < dim; ++d)
+                ASSERT_EQ(x[d],
+                          position[si][static_cast<std::size_t>(d)][static_cast<std::size_t>(id)]);
+            const std::size_t cell = g.cell_index(x);
+            ASSERT_GE(cell, last_cell) << "set " << si << ", particle " << p;
+            if (p > 0 && cell == last_cell) {
+                ASSERT_GT(id, last_id) << "not stable in cell " << cell;
+            }
+            last_cell = cell;
+            last_id = id;
+            EXPECT_EQ(s.group[p], id % 7);
+            EXPECT_EQ(s.load_mask[p], static_cast<std::uint32_t>(id % 5));
+            EXPECT_EQ(s.fix_mask[p], static_cast<std::uint32_t>(id % 3));
+        }
+        s.for_each_named_column([&](const char *name, auto &col, std::size_t stride) {
+            using T = typename std::decay_t<decltype(col)>::value_type;
+            if constexpr (std::is_same_v<T, double>) {
+                const std::string nm = name;
+                if (nm == "x" || nm == "y" || nm == "z") return;
+                for (std::size_t p = 0; p < s.n; ++p)
+                    for (std::size_t k = 0; k < stride; ++k)
+                        ASSERT_EQ(col[p * stride + k], expected(s.id[p], k))
+                            << "column " << name << ", particle " << p << ", value " << k;
+            }
+        });
+    }
+}
+
+TEST(Ordering, SortPutsParticlesInCellOrderStablyWithEveryColumnTheirOwn2D) { check_sorted(2, 0); }
+
+TEST(Ordering, SortPutsParticlesInCellOrderStablyWithEveryColumnTheirOwn3D) { check_sorted(3, 5); }
+
+} // namespace
