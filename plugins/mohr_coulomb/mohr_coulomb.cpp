@@ -222,13 +222,14 @@ struct MohrCoulomb {
                 "it or remove them");
         }
         fixed_strength_ = strength_at(0.0);
+        fixed_lode_bound_ = lode_bound(fixed_strength_);
     }
 
     void update(const talus::sdk::PointIn &in, talus::sdk::PointOut &out) const {
         const double kappa_n = in.state[0];
         const Strength st_n = strength(kappa_n);
         Vec6 trial = in.stress + De_ * in.strain_increment;
-        if (clearly_elastic(trial, st_n)) {
+        if (clearly_elastic(trial, st_n, softening_ ? lode_bound(st_n) : fixed_lode_bound_)) {
             out.stress = trial;
             out.state[2] = talus_mc::kElastic;
             if (out.tangent) *out.tangent = De_;
@@ -337,6 +338,11 @@ struct MohrCoulomb {
         return V3(es.eigenvalues()[2], es.eigenvalues()[1], es.eigenvalues()[0]);
     }
 
+    // max over the Lode angle of cos(theta) - sin(phi) sin(theta) / sqrt(3),
+    // for clearly_elastic: a square root per strength, not per call.
+    static double lode_bound(const Strength &st) {
+        return std::sqrt(1.0 + st.sin_phi * st.sin_phi / 3.0);
+    }
     // Whether the trial stress is inside the surface by more than the
     // return's tolerance, decided from the invariants without eigenvalues
     // (most points' case; the decomposition costs more than the rest of an
@@ -349,7 +355,8 @@ struct MohrCoulomb {
     // tolerance (rounding here is ~1e-15 of the stress, the tolerance 1e-10)
     // mean the exact test finds the point inside and off the surface: the
     // result is the full path's, bit for bit.
-    static bool clearly_elastic(const Vec6 &t, const Strength &st) {
+    // `bound`: lode_bound(st).
+    static bool clearly_elastic(const Vec6 &t, const Strength &st, double bound) {
         const double p = (t[0] + t[1] + t[2]) / 3.0;
         const double J2 = ((t[0] - t[1]) * (t[0] - t[1]) + (t[1] - t[2]) * (t[1] - t[2]) +
                            (t[2] - t[0]) * (t[2] - t[0])) /
@@ -360,9 +367,8 @@ struct MohrCoulomb {
         // Twice stress_tolerance at least: max |s_i| <= |p| + 2 sqrt(J2 / 3).
         const double tol =
             2e-10 * std::max({std::abs(p) + 2.0 * q / std::sqrt(3.0), st.cohesion, 1e-300});
-        const double shear_max = 2.0 * p * st.sin_phi +
-                                 2.0 * q * std::sqrt(1.0 + st.sin_phi * st.sin_phi / 3.0) -
-                                 2.0 * st.cohesion * st.cos_phi;
+        const double shear_max =
+            2.0 * p * st.sin_phi + 2.0 * q * bound - 2.0 * st.cohesion * st.cos_phi;
         return shear_max < -tol && !(st.tension_active && s1_max - st.tension >= -tol);
     }
     // Within the validity tolerance of the shear plane or the cut-off.
@@ -511,6 +517,7 @@ struct MohrCoulomb {
     // The strength without softening, computed once: its sines and cosines
     // would otherwise be a fifth of a plastic point's cost.
     Strength fixed_strength_;
+    double fixed_lode_bound_ = 1.0;
 };
 
 } // namespace
