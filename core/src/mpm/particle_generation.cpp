@@ -38,6 +38,19 @@ std::vector<std::array<double, 3>> lattice_points(const Scenario &sc, const Grou
     const int D = sc.dim;
     const Box bb = gs.shape.bounds(D);
     const double sub = sc.cell / gs.particles_per_cell;
+    // A shape reaching more than one lattice spacing past the grid is
+    // refused before the search: the search would run over the lattice far
+    // beyond the grid (for a shape placed far away, with indices past the
+    // range of an int). Within that band the search below finds any
+    // particle outside the grid.
+    for (std::size_t d = 0; d < static_cast<std::size_t>(D); ++d) {
+        const double g0 = sc.origin[d], g1 = sc.origin[d] + sc.size[d];
+        if (!(bb.min[d] >= g0 - sub && bb.max[d] <= g1 + sub))
+            throw Error(gs.shape_origin.error(fmt::format(
+                "group '{}' reaches outside the grid: its shape spans [{}, {}] m in {}, "
+                "the grid [{}, {}] m; enlarge grid.size or move the shape",
+                gs.name, bb.min[d], bb.max[d], "xyz"[d], g0, g1)));
+    }
     std::array<int, 3> lo{0, 0, 0}, hi{0, 1, 1};
     for (std::size_t d = 0; d < static_cast<std::size_t>(D); ++d) {
         lo[d] = static_cast<int>(std::floor((bb.min[d] - sc.origin[d]) / sub)) - 1;
