@@ -50,8 +50,15 @@ struct GridGeometry {
     // called per particle and axis at the end of every step.
     int cell(int d, double x) const {
         const std::size_t dd = static_cast<std::size_t>(d);
-        const int c = static_cast<int>(fast_floor((x - origin[dd]) * inv_h));
-        return std::clamp(c, 0, cells[dd] - 1);
+        return clamped_cell((x - origin[dd]) * inv_h, cells[dd]);
+    }
+    // floor(xi) clamped into [0, n): a coordinate far outside the domain, or
+    // NaN (a run blowing up, which the step's leaving check reports next),
+    // is clamped before any conversion to int, which would be undefined.
+    static int clamped_cell(double xi, int n) {
+        if (!(xi >= 0.0)) return 0;
+        if (xi >= n - 1) return n - 1;
+        return static_cast<int>(xi); // truncation is floor for xi >= 0
     }
     // Cell number (in the domain's cell order) of a position.
     std::size_t cell_index(const double *x) const;

@@ -120,8 +120,7 @@ void end_block(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &g
             in = in && xd >= lo[d] && xd <= hi[d];
             v2 += v[d][p] * v[d][p];
             // The cell, and from it the slab (GridGeometry::cell).
-            const int cd =
-                std::clamp(static_cast<int>(fast_floor((xd - origin[d]) * inv_h)), 0, cells[d] - 1);
+            const int cd = GridGeometry::clamped_cell((xd - origin[d]) * inv_h, cells[d]);
             ci += static_cast<std::size_t>(cd) * stride;
             stride *= static_cast<std::size_t>(cells[d]);
             if (d == axis) sl = order.slab_of_cell(cd);

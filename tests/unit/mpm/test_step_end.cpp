@@ -16,6 +16,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <numeric>
 #include <random>
 #include <vector>
@@ -184,6 +185,52 @@ TEST(StepEnd, ThePassOfItsOwnGivesThePlainLoopsResults) {
     StepEndBlocks ends;
     expect_equal(e, talus::move_particles(sets, g, dom, order, PositionStep::add_dx, ends), sets,
                  order);
+}
+
+} // namespace
+
+namespace {
+
+// A position far outside the domain or NaN (a run blowing up) takes the
+// clamped end cell without an out-of-range conversion to int (undefined
+// behaviour, which the sanitizer build reports), and for a finite
+// coordinate the cell is floor() clamped into the domain.
+TEST(StepEnd, CellsOfPositionsFarOutsideOrNaNAreClamped) {
+    using talus::GridGeometry;
+    const int n = 40;
+    EXPECT_EQ(GridGeometry::clamped_cell(std::nan(""), n), 0);
+    EXPECT_EQ(GridGeometry::clamped_cell(-1e300, n), 0);
+    EXPECT_EQ(GridGeometry::clamped_cell(1e300, n), n - 1);
+    EXPECT_EQ(GridGeometry::clamped_cell(std::numeric_limits<double>::infinity(), n), n - 1);
+    for (double xi = -3.0; xi < n + 3.0; xi += 0.0625)
+        EXPECT_EQ(GridGeometry::clamped_cell(xi, n),
+                  std::clamp(static_cast<int>(std::floor(xi)), 0, n - 1))
+            << "xi = " << xi;
+}
+
+TEST(StepEnd, AParticleWithANonFinitePositionIsCountedOutside) {
+    const GridGeometry g = geometry();
+    const Domain dom = domain_of(g);
+    std::vector<ParticleSet> sets = particles(g, 31);
+    Ordering order(g, sets.size());
+    Expected e = reference(particles(g, 31), g, dom, order);
+    sets[0].dx[0][17] = std::nan("");
+    sets[1].dx[1][3] = 1e300;
+    StepEndBlocks ends;
+    const StepEnd got = talus::move_particles(sets, g, dom, order, PositionStep::add_dx, ends);
+    // Particle 17 of set 0 and 3 of set 1 were inside the domain before
+    // (the reference counted them so) unless the test's random steps had
+    // already taken them out.
+    const long was_out = (e.x[0][0][17] < dom.lo[0] || e.x[0][0][17] > dom.hi[0] ||
+                          e.x[1][0][17] < dom.lo[1] || e.x[1][0][17] > dom.hi[1])
+                             ? 1
+                             : 0;
+    const long was_out_2 = (e.x[0][1][3] < dom.lo[0] || e.x[0][1][3] > dom.hi[0] ||
+                            e.x[1][1][3] < dom.lo[1] || e.x[1][1][3] > dom.hi[1])
+                               ? 1
+                               : 0;
+    EXPECT_EQ(got.outside, e.end.outside + (1 - was_out) + (1 - was_out_2));
+    EXPECT_TRUE(std::isnan(sets[0].x[0][17]));
 }
 
 } // namespace
