@@ -197,6 +197,20 @@ Prepared prepare_run(Scenario &sc, const SolverOptions &solver) {
             "velocities",
             plan.steps, plan.first_dt, sc.solver.dt ? ", here fixed" : "", sc.end_time,
             kMaxSteps)));
+    // Output and checkpoint times are counted as k * every: a cadence
+    // finer than time.end / 2^53 cannot be counted (doubles stop holding
+    // every integer there).
+    if (sc.output.every > 0.0 && !(sc.end_time / sc.output.every < kMaxCadenceCount))
+        throw Error(sc.output.every_origin.error(fmt::format(
+            "output.every = {:g} s is too fine to count up to t = {:g} s (more than 2^53 "
+            "output times); outputs come at most once per step, so a cadence below the time "
+            "step ({:.3g} s) gives the same files as the step itself",
+            sc.output.every, sc.end_time, plan.first_dt)));
+    if (sc.checkpoint.every && !(sc.end_time / *sc.checkpoint.every < kMaxCadenceCount))
+        throw Error(sc.checkpoint.every_origin.error(fmt::format(
+            "checkpoint.every = {:g} s is too fine to count up to t = {:g} s (more than 2^53 "
+            "checkpoint times); checkpoint.steps: 1 writes one after every step",
+            *sc.checkpoint.every, sc.end_time)));
     if (plan.output_files > kMaxOutputFiles)
         plan.over_limits.push_back(sc.output.every_origin.warning(fmt::format(
             "the cadence asks for about {:.3g} VTK files, more than {:.0e}; raise output.every",
@@ -207,6 +221,24 @@ Prepared prepare_run(Scenario &sc, const SolverOptions &solver) {
 // -------------------------------------------------------------- the run --
 
 namespace {
+
+// The smallest k >= from with k * every > t: the next output or checkpoint
+// after time t, computed (floor(t / every) + 1, mended by one where the
+// division rounds) instead of counted up to one by one, which took for
+// ever for a cadence far below the time step. prepare_run keeps t / every
+// below 2^53, where doubles still count every integer.
+long next_multiple(double t, double every, long from) {
+    double k = std::max(std::floor(t / every) + 1.0, static_cast<double>(from));
+    if (!(k < kMaxCadenceCount))
+        throw Error(fmt::format("a cadence of {:g} s at t = {:.6g} s: more than 2^53 of them "
+                                "(output.every or checkpoint.every is too fine)",
+                                every, t));
+    while (k * every <= t)
+        k += 1.0;
+    while (k - 1.0 >= static_cast<double>(from) && (k - 1.0) * every > t)
+        k -= 1.0;
+    return static_cast<long>(k);
+}
 
 bool is_own_file(const fs::path &p) {
     const std::string name = p.filename().string();
@@ -822,14 +854,13 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     // Checkpoints: by steps, simulated time or wall-clock time, whichever
     // comes first; none of them changes the trajectory.
     const CheckpointSpec &ck = sc.checkpoint;
-    long next_ck = ck.every ? static_cast<long>(std::floor(sim.time() / *ck.every)) + 1 : 0;
+    long next_ck = ck.every ? next_multiple(sim.time(), *ck.every, 1) : 0;
     double last_ck_wall = 0.0;
     auto checkpoint_due = [&] {
         bool now = ck.steps && sim.steps() % *ck.steps == 0;
         if (ck.every && sim.time() >= static_cast<double>(next_ck) * *ck.every) {
             now = true;
-            while (static_cast<double>(next_ck) * *ck.every <= sim.time())
-                ++next_ck;
+            next_ck = next_multiple(sim.time(), *ck.every, next_ck);
         }
         if (ck.wall && elapsed() - last_ck_wall >= *ck.wall) now = true;
         return now;
@@ -868,8 +899,7 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
                 write_or_stop(out, sim);
                 // One file per output time reached, even if a long step
                 // passed several of them.
-                while (due() <= sim.time() + 1e-9 * sim.last_dt())
-                    ++next_k;
+                next_k = next_multiple(sim.time() + 1e-9 * sim.last_dt(), every, next_k);
             }
             stop_if_signalled();
             if (checkpoint_due()) {

@@ -880,7 +880,10 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
     if (const yaml::Node ck = root.get("checkpoint"); ck.defined()) {
         allow(ck, "checkpoint");
         CheckpointSpec &c = s.checkpoint;
-        if (const yaml::Node n = ck.get("every"); n.defined()) c.every = positive(n, "every (s)");
+        if (const yaml::Node n = ck.get("every"); n.defined()) {
+            c.every = positive(n, "every (s)");
+            c.every_origin = origin_of(n);
+        }
         if (const yaml::Node n = ck.get("steps"); n.defined()) {
             c.steps = n.as_integer();
             if (*c.steps < 1) n.fail(fmt::format("expected steps >= 1, got {}", *c.steps));

@@ -70,6 +70,42 @@ TEST(RunOutput, ResultsDoNotDependOnTheOutputCadence) {
     fs::remove_all(tmp);
 }
 
+// A cadence far below the time step: output and checkpoint times were
+// counted up to one by one after each step (about 10^9 multiples of 1e-12 s
+// per step of 8e-4 s here; for 1e-300 s the run never ended, deaf even to
+// SIGTERM, which is now refused before the first step: the corpus'
+// *_every_too_fine.yaml). Now the next time is computed: every step writes
+// one row and one checkpoint (at most one per step, as documented).
+TEST(RunOutput, ACadenceFarBelowTheStepWritesEveryStepAndEnds) {
+    const std::string yaml =
+        "talus: 1\ndimension: 2\ngrid: {origin: [0, 0], size: [1, 1], cell: 0.1}\n"
+        "materials:\n  m: {model: linear_elastic, density: 1000, youngs_modulus: 1.0e6, "
+        "poisson_ratio: 0.3}\n"
+        "groups:\n  g: {material: m, shape: {box: {min: [0.2, 0.2], max: [0.4, 0.4]}}}\n"
+        "gravity: [0, -9.81]\ntime: {end: 0.001}\n"
+        "output: {every: 1.0e-12, vtk: false}\n"
+        "checkpoint: {every: 1.0e-12, keep: 10}\n";
+    const fs::path tmp = fs::temp_directory_path() / "talus_fine_cadence_test";
+    fs::remove_all(tmp);
+    fs::create_directories(tmp);
+    // From a file: a checkpoint stores the scenario's text.
+    const fs::path file = tmp / "fine.yaml";
+    std::ofstream(file) << yaml;
+    auto s = talus::test::make_sim(talus::yaml::load_file(file.string()), {});
+    std::ostringstream log;
+    run_into(*s, tmp / "out", log);
+    const auto rows = talus::test::read_numeric_csv(tmp / "out" / "diagnostics.csv");
+    const long steps = static_cast<long>(rows.back()[0]);
+    ASSERT_GE(steps, 2);
+    // The start, then one row per step.
+    EXPECT_EQ(static_cast<long>(rows.size()), steps + 1);
+    long checkpoints = 0;
+    for (const auto &e : fs::directory_iterator(tmp / "out" / "checkpoints"))
+        checkpoints += e.path().extension() == ".h5" ? 1 : 0;
+    EXPECT_EQ(checkpoints, steps);
+    fs::remove_all(tmp);
+}
+
 // `validate` and `run` note a slender group with at most 2 particles per
 // cell (docs/scenario-reference.md, "Particles per cell in slender bodies"):
 // a 1 x 0.1 m beam is 10 times longer than thick; a 0.3 x 0.1 m block (3

@@ -64,6 +64,9 @@ inline constexpr const char *kFinalFieldBuiltins[] = {"displacement", "speed", "
 // `validate` warns, `run` refuses unless told otherwise.
 inline constexpr double kMaxSteps = 1e8;
 inline constexpr double kMaxOutputFiles = 1e5;
+// Output and checkpoint times are k * every with k counted in a double:
+// at most 2^53 of them up to time.end.
+inline constexpr double kMaxCadenceCount = 9007199254740992.0;
 
 // What validate reports and run checks before the first step.
 struct RunPlan {

@@ -225,9 +225,10 @@ struct StageSpec {
 // it always does.
 struct CheckpointSpec {
     std::optional<double> every; // s of simulated time
-    std::optional<long> steps;   // every this many steps
-    std::optional<double> wall;  // s of wall-clock time
-    int keep = 2;                // the newest this many are kept
+    Origin every_origin;
+    std::optional<long> steps;  // every this many steps
+    std::optional<double> wall; // s of wall-clock time
+    int keep = 2;               // the newest this many are kept
 };
 
 struct Scenario {
