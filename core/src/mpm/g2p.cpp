@@ -124,13 +124,21 @@ void g2p_motion_pass(const G2pTargets &t, const double *vel, double dt, Motion m
                      GradientBlocks *blocks) {
     using K = G2pMotionKernel<D, S, T, StoreGradient, Kinematics>;
     const auto kernel = IsaVersions<K>::pick(t.isa);
+    // With the update fused in, chunks are whole blocks, so that every
+    // block starts at a multiple of the block size, as the blocks' partial
+    // results are filed (StepEndBlocks).
+    std::size_t chunk = par::kDefaultChunk;
+    if constexpr (Kinematics) {
+        const std::size_t B = blocks->block_size();
+        chunk = B * ((par::kDefaultChunk + B - 1) / B);
+    }
     for (std::size_t si = 0; si < t.sets.size(); ++si)
         par::for_each_chunk(
             t.sets[si].n,
             [&](std::size_t begin, std::size_t end) {
                 kernel(typename K::Args{&t, vel, dt, motion, blocks, si, begin, end});
             },
-            Kinematics ? par::Schedule::dynamic : par::Schedule::equal_shares);
+            Kinematics ? par::Schedule::dynamic : par::Schedule::equal_shares, chunk);
 }
 
 template <int D, class S, bool Positions>

@@ -2,6 +2,8 @@
 
 #include "parallel.hpp"
 
+#include <talus/error.hpp>
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -58,6 +60,7 @@ void StepEndBlocks::begin(std::vector<ParticleSet> &sets, const GridGeometry &ge
     order_ = &order;
     add_ = step == PositionStep::add_dx;
     block_ = std::max<std::size_t>(1, block);
+    misfiled_.store(false, std::memory_order_relaxed);
     marks_.resize(sets.size());
     partials_.resize(sets.size());
     for (std::size_t si = 0; si < sets.size(); ++si) {
@@ -143,6 +146,10 @@ void end_block(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &g
 } // namespace
 
 void StepEndBlocks::block(std::size_t set, std::size_t begin, std::size_t count) {
+    if (begin % block_ != 0 || count > block_) [[unlikely]] {
+        misfiled_.store(true, std::memory_order_relaxed);
+        return;
+    }
     ParticleSet &s = (*sets_)[set];
     Partial r;
     auto run = [&]<int D, bool Add>() {
@@ -156,6 +163,10 @@ void StepEndBlocks::block(std::size_t set, std::size_t begin, std::size_t count)
 }
 
 StepEnd StepEndBlocks::finish() {
+    if (misfiled_.load(std::memory_order_relaxed))
+        throw Error(fmt::format("internal error: the step's end was given a block that does not "
+                                "start at a multiple of its block size ({} particles)",
+                                block_));
     Partial total;
     for (const std::vector<Partial> &set : partials_) {
         Partial part;

@@ -9,6 +9,7 @@
 #include <talus/mpm/particles.hpp>
 
 #include <array>
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -37,7 +38,8 @@ struct StepEnd {
 
 // The step's end, block by block: begin() before the pass, block() for
 // every block of every set (from any thread, each block once, in any
-// order), finish() after it. Each block keeps its own partial result and
+// order; each starting at a multiple of the block size), finish() after
+// it. Each block keeps its own partial result and
 // finish() merges them in memory order, so the counts and the maximum are
 // the same whatever the thread count and the schedule: the fused USL pass
 // (g2p.hpp) runs block() on a block while it is still in cache, the other
@@ -63,8 +65,9 @@ class StepEndBlocks {
     void begin(std::vector<ParticleSet> &sets, const GridGeometry &geo, const Domain &domain,
                Ordering &order, PositionStep step, std::size_t block);
     void block(std::size_t set, std::size_t begin, std::size_t count);
+    // Throws talus::Error if a block broke block()'s contract (its partial
+    // would have overwritten another's).
     StepEnd finish();
-    std::size_t block_size() const { return block_; }
 
   private:
     std::vector<ParticleSet> *sets_ = nullptr;
@@ -75,6 +78,7 @@ class StepEndBlocks {
     std::size_t block_ = 1;
     std::vector<Ordering::Marks> marks_;         // per set
     std::vector<std::vector<Partial>> partials_; // per set, per block (kept between steps)
+    std::atomic<bool> misfiled_{false};          // a block not at a multiple of block_
 };
 
 // The step's end as a pass of its own (the schemes other than fused USL).

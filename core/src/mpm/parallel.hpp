@@ -66,11 +66,14 @@ void for_each(std::size_t n, F &&f) {
 // block of particles per call (one indirect call per chunk, not per
 // particle). In equal static shares, or dealt out dynamically when chunks
 // cost unevenly (a G2P with the material update fused in: a plastic chunk
-// costs more than an elastic one).
+// costs more than an elastic one). Every chunk but the last has `chunk`
+// elements, so each starts at a multiple of it.
 enum class Schedule { equal_shares, dynamic };
+inline constexpr std::size_t kDefaultChunk = 512;
 template <class F>
-void for_each_chunk(std::size_t n, F &&f, Schedule schedule = Schedule::equal_shares) {
-    constexpr std::size_t kChunk = 512;
+void for_each_chunk(std::size_t n, F &&f, Schedule schedule = Schedule::equal_shares,
+                    std::size_t chunk = kDefaultChunk) {
+    const std::size_t kChunk = std::max<std::size_t>(1, chunk);
     const std::ptrdiff_t chunks = static_cast<std::ptrdiff_t>((n + kChunk - 1) / kChunk);
     ++regions();
     if (schedule == Schedule::dynamic) {

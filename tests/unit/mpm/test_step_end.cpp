@@ -10,6 +10,8 @@
 #include "move_particles.hpp"
 #include "ordering.hpp"
 
+#include <talus/error.hpp>
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -174,6 +176,26 @@ TEST(StepEnd, BlocksInAnyOrderAndOfAnySizeGiveThePlainLoopsResults) {
             expect_equal(e, ends.finish(), sets, order);
         }
     }
+}
+
+// A block that does not start at a multiple of the block size would file
+// its partial over another's: refused when the pass ends, not lost.
+TEST(StepEnd, AMisalignedBlockIsRefusedNotLost) {
+    const GridGeometry g = geometry();
+    const Domain dom = domain_of(g);
+    std::vector<ParticleSet> sets = particles(g, 3);
+    Ordering order(g, sets.size());
+    StepEndBlocks ends;
+    ends.begin(sets, g, dom, order, PositionStep::add_dx, 128);
+    ends.block(0, 0, 100);
+    ends.block(0, 100, 128); // overlaps block 0's slot
+    EXPECT_THROW(ends.finish(), talus::Error);
+    // The next pass starts clean.
+    ends.begin(sets, g, dom, order, PositionStep::add_dx, 128);
+    for (std::size_t si = 0; si < sets.size(); ++si)
+        for (std::size_t b = 0; b < sets[si].n; b += 128)
+            ends.block(si, b, std::min<std::size_t>(128, sets[si].n - b));
+    EXPECT_NO_THROW(ends.finish());
 }
 
 TEST(StepEnd, ThePassOfItsOwnGivesThePlainLoopsResults) {
