@@ -3,6 +3,7 @@
 //
 //   talus_bench [--steps N] [--repeat R] [--case NAME] [--threads T[,T...]] [--busy N]
 //               [--profile]
+//   mpirun -np N talus_bench ...   (the cases spread over N ranks; rank 0 prints)
 #include <talus/input/scenario_yaml.hpp>
 #include <talus/input/yaml_input.hpp>
 #include <talus/mpm/simulation.hpp>
@@ -179,6 +180,9 @@ void memory_bandwidth(int threads, int repeat) {
 } // namespace
 
 int main(int argc, char **argv) {
+    talus::MpiSession mpi(&argc, &argv);
+    const talus::Comm comm = talus::Comm::world();
+    const bool rank0 = comm.rank() == 0;
     // 25 steps: the particle re-sort period, so every timed window pays
     // for exactly one sort.
     int steps = 25, repeat = 3;
@@ -280,7 +284,7 @@ int main(int argc, char **argv) {
     }
     const BusyProcesses beside(busy);
     try {
-        if (only.empty() || only == "memory_bandwidth")
+        if ((only.empty() || only == "memory_bandwidth") && !comm.distributed())
             for (const int threads : thread_counts)
                 memory_bandwidth(threads, repeat);
         for (const Case &c : cases)
@@ -291,20 +295,40 @@ int main(int argc, char **argv) {
                 talus::Scenario sc = talus::read_scenario(root, registry);
                 talus::SolverOptions so;
                 so.threads = threads;
+                so.comm = comm;
                 talus::Simulation sim(sc, so);
                 for (int w = 0; w < 2; ++w)
                     sim.step(1.0); // warm caches and the allocator
                 std::vector<double> times;
                 const long regions0 = talus::Simulation::parallel_regions();
+                const talus::RankTraffic traffic0 = sim.traffic();
+                const auto phases0 = sim.phase_seconds();
                 for (int r = 0; r < repeat; ++r) {
+                    // On several ranks: from a common start to the last
+                    // rank's end.
+                    comm.barrier();
                     const auto t0 = std::chrono::steady_clock::now();
                     for (int s = 0; s < steps; ++s)
                         sim.step(1.0);
                     const double sec =
                         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
                             .count();
-                    times.push_back(sec);
+                    times.push_back(comm.max(sec));
                 }
+                // Per rank and step in the timed steps: the seconds in the
+                // halo sums and the migration, and the bytes sent (the
+                // most of any rank).
+                const talus::RankTraffic traffic1 = sim.traffic();
+                const auto phases1 = sim.phase_seconds();
+                const double timed = static_cast<double>(repeat) * steps;
+                auto per_step = [&](double v) { return comm.max(v) / timed; };
+                const int halo_k = talus::Simulation::kPhases - 2, mig_k = halo_k + 1;
+                const double halo_s = per_step(phases1[halo_k] - phases0[halo_k]);
+                const double mig_s = per_step(phases1[mig_k] - phases0[mig_k]);
+                const double halo_b =
+                    per_step(static_cast<double>(traffic1.halo_bytes - traffic0.halo_bytes));
+                const double mig_b = per_step(
+                    static_cast<double>(traffic1.migration_bytes - traffic0.migration_bytes));
                 std::sort(times.begin(), times.end());
                 const double best = times.front();
                 const std::size_t mid = times.size() / 2;
@@ -322,9 +346,11 @@ int main(int argc, char **argv) {
                 for (talus::ParticleSet &set : sim.sets())
                     particle_bytes +=
                         static_cast<double>(set.bytes_per_particle()) * static_cast<double>(set.n);
+                particle_bytes = comm.sum(particle_bytes);
                 rusage usage{};
                 getrusage(RUSAGE_SELF, &usage);
-                const double rss = 1024.0 * static_cast<double>(usage.ru_maxrss);
+                // All ranks' peaks.
+                const double rss = comm.sum(1024.0 * static_cast<double>(usage.ru_maxrss));
                 const int used = talus::Simulation::max_threads();
                 // Each phase's share of the time in the step's phases (warm-up
                 // steps included), in the JSON line and with --profile on
@@ -338,26 +364,31 @@ int main(int argc, char **argv) {
                     const double share = ph[static_cast<std::size_t>(k)] / total;
                     shares += fmt::format("{}\"{}\": {:.3f}", k ? ", " : "",
                                           talus::Simulation::phase_name(k), share);
-                    if (profile)
+                    if (profile && rank0)
                         std::fprintf(stderr, "  %-28s %6.1f %%\n", talus::Simulation::phase_name(k),
                                      100.0 * share);
                 }
-                std::printf("{\"case\": \"%s\", \"dim\": %d, \"particles\": %zu, \"steps\": %d, "
-                            "\"threads\": %d, \"kernels\": \"%s\", \"material_path\": \"%s\", "
+                if (!rank0) continue;
+                std::printf("{\"case\": \"%s\", \"dim\": %d, \"particles\": %.0f, \"steps\": %d, "
+                            "\"ranks\": %d, \"threads\": %d, \"kernels\": \"%s\", "
+                            "\"material_path\": \"%s\", "
                             "\"busy_processes\": %d, \"seconds\": %.4f, "
                             "\"particle_steps_per_second\": %.4g, "
                             "\"median_particle_steps_per_second\": %.4g, "
                             "\"particle_bytes\": %.0f, \"max_rss_bytes_per_particle\": %.0f, "
-                            "\"barriers_per_step\": %.1f, \"phase_shares\": {%s}}\n",
-                            c.name.c_str(), c.dim, sim.particle_count(), steps, used,
-                            sim.kernel_isa(), kMaterialPath, busy, best, n * steps / best,
-                            n * steps / median, particle_bytes / n, rss / n, barriers,
+                            "\"barriers_per_step\": %.1f, \"halo_seconds_per_step\": %.3g, "
+                            "\"migration_seconds_per_step\": %.3g, "
+                            "\"halo_bytes_per_rank_step\": %.0f, "
+                            "\"migration_bytes_per_rank_step\": %.0f, \"phase_shares\": {%s}}\n",
+                            c.name.c_str(), c.dim, n, steps, comm.size(), used, sim.kernel_isa(),
+                            kMaterialPath, busy, best, n * steps / best, n * steps / median,
+                            particle_bytes / n, rss / n, barriers, halo_s, mig_s, halo_b, mig_b,
                             shares.c_str());
                 std::fflush(stdout);
             }
     } catch (const std::exception &e) {
         std::fprintf(stderr, "talus_bench: %s\n", e.what());
-        return 1;
+        talus::MpiSession::abort(1);
     }
     return 0;
 }

@@ -54,8 +54,9 @@ const std::vector<std::pair<std::string_view, Keys>> &schema() {
         {"loads[].box", {"min", "max"}},
         {"solver",
          {"scheme", "transfer", "shape", "cfl", "dt", "position_update", "cell_averaged_dilation",
-          "leaving_grid"}},
+          "leaving_grid", "load_balance"}},
         {"solver.transfer", {"type", "alpha"}},
+        {"solver.load_balance", {"imbalance", "every"}},
         {"time", {"end"}},
         {"stages[]",
          {"name", "duration", "until", "boundaries", "gravity", "damping", "nodal_velocities",
@@ -863,6 +864,23 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
         if (const yaml::Node n = sv.get("leaving_grid"); n.defined())
             p.leave = choose<LeavePolicy>(
                 n, {{"stop", LeavePolicy::stop}, {"remove", LeavePolicy::remove}});
+        if (const yaml::Node lb = sv.get("load_balance"); lb.defined()) {
+            allow(lb, "solver.load_balance");
+            if (const yaml::Node n = lb.get("imbalance"); n.defined()) {
+                p.rebalance_imbalance = n.as_double();
+                if (!(p.rebalance_imbalance >= 1.0))
+                    n.fail(fmt::format("expected imbalance >= 1 (the most particles on a rank "
+                                       "over the mean), got {:g}",
+                                       p.rebalance_imbalance));
+            }
+            if (const yaml::Node n = lb.get("every"); n.defined()) {
+                const long long every = n.as_integer();
+                if (every < 1 || every > 1000000000)
+                    n.fail(
+                        fmt::format("expected every >= 1 (steps between checks), got {}", every));
+                p.rebalance_every = static_cast<int>(every);
+            }
+        }
     }
 
     if (const yaml::Node st = root.get("stages"); st.defined()) {

@@ -9,7 +9,8 @@
 
 namespace talus {
 
-Boundary::Boundary(const Scenario &sc, const Conditions &c, const Grid &grid, double t0)
+Boundary::Boundary(const Scenario &sc, const Conditions &c, const Grid &grid, double t0,
+                   const Comm &comm)
     : dim_(sc.dim), t0_(t0), faces_(c.faces) {
     for (const NodalVelocity &nv : c.nodal_velocities) {
         Prescribed p{{}, nv.velocity};
@@ -18,7 +19,10 @@ Boundary::Boundary(const Scenario &sc, const Conditions &c, const Grid &grid, do
             const std::array<double, 3> x = grid.node_point(i, sc.solver.shape);
             if (nv.box.contains(x.data(), dim_)) p.nodes.push_back(static_cast<std::uint32_t>(i));
         }
-        if (p.nodes.empty())
+        // On several ranks a box may lie outside this rank's nodes: refused
+        // only when it holds none on any.
+        const long held = comm.sum(static_cast<long>(p.nodes.size()));
+        if (held == 0)
             throw Error(nv.origin.error(fmt::format(
                 "the box holds no grid node (nodes are {:g} m apart{}); enlarge the box",
                 grid.geo.h,

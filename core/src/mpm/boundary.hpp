@@ -5,6 +5,7 @@
 
 #include "grid.hpp"
 
+#include <talus/mpm/comm.hpp>
 #include <talus/mpm/scenario.hpp>
 
 #include <array>
@@ -15,10 +16,14 @@ namespace talus {
 
 class Boundary {
   public:
+    // No conditions (a placeholder until the grid is known).
+    Boundary() = default;
     // The conditions `c` of a stage that began at t0 (its functions are of
     // the time since). Finds the nodes of each prescribed-velocity box;
-    // throws (at the entry's place in the file) if a box holds none.
-    Boundary(const Scenario &sc, const Conditions &c, const Grid &grid, double t0);
+    // throws (at the entry's place in the file) if a box holds none, on
+    // any of `comm`'s ranks (collective).
+    Boundary(const Scenario &sc, const Conditions &c, const Grid &grid, double t0,
+             const Comm &comm = Comm::serial());
 
     // Applies every condition at (the run's) time t to the velocity at `offset` of the
     // node records `field` (Grid::vel at node::kVelocity or kEndVelocity,
@@ -44,8 +49,8 @@ class Boundary {
         std::vector<std::uint32_t> nodes;
         ComponentFunctions velocity;
     };
-    int dim_;
-    double t0_;
+    int dim_ = 2;
+    double t0_ = 0.0;
     std::array<FaceCondition, 6> faces_;
     std::vector<Prescribed> prescribed_;
     std::vector<ComponentFunctions> fixities_;

@@ -76,6 +76,27 @@ Diagnostics Simulation::diagnostics() const {
             }
         }
     }
+    if (g.comm.distributed()) {
+        // Over the ranks (the removed and held counts already are: the
+        // step's end sums them).
+        double sums[9] = {dg.mass,
+                          dg.momentum[0],
+                          dg.momentum[1],
+                          dg.momentum[2],
+                          dg.kinetic_energy,
+                          dg.stress_work,
+                          dg.angular_momentum[0],
+                          dg.angular_momentum[1],
+                          dg.angular_momentum[2]};
+        g.comm.sum(sums, 9);
+        dg.mass = sums[0];
+        dg.momentum = {sums[1], sums[2], sums[3]};
+        dg.kinetic_energy = sums[4];
+        dg.stress_work = sums[5];
+        dg.angular_momentum = {sums[6], sums[7], sums[8]};
+        dg.particles = static_cast<std::size_t>(g.comm.sum(static_cast<long>(dg.particles)));
+        dg.cut_steps = g.comm.sum(dg.cut_steps);
+    }
     return dg;
 }
 

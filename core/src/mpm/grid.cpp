@@ -24,7 +24,12 @@ std::size_t GridGeometry::cell_index(const double *x) const {
 }
 
 Grid::Grid(int dim, const std::array<double, 3> &origin, const std::array<double, 3> &size,
-           double h, ShapeKind shape) {
+           double h, ShapeKind shape)
+    : Grid(dim, origin, size, h, shape, {0, 0, 0}, {-1, -1, -1}) {}
+
+Grid::Grid(int dim, const std::array<double, 3> &origin, const std::array<double, 3> &size,
+           double h, ShapeKind shape, const std::array<int, 3> &box_lo,
+           const std::array<int, 3> &box_hi) {
     geo.dim = dim;
     geo.h = h;
     geo.inv_h = 1.0 / h;
@@ -34,8 +39,11 @@ Grid::Grid(int dim, const std::array<double, 3> &origin, const std::array<double
     for (std::size_t d = 0; d < 3; ++d) {
         if (static_cast<int>(d) < dim) {
             geo.cells[d] = static_cast<int>(std::lround(size[d] / h));
-            geo.first[d] = -kGhostLayers;
-            geo.extent[d] = geo.cells[d] + 1 + 2 * kGhostLayers;
+            // box_hi < box_lo: the whole domain.
+            const int lo = box_hi[d] < box_lo[d] ? 0 : box_lo[d];
+            const int hi = box_hi[d] < box_lo[d] ? geo.cells[d] : box_hi[d];
+            geo.first[d] = lo - kGhostLayers;
+            geo.extent[d] = hi - lo + 1 + 2 * kGhostLayers;
         } else {
             geo.cells[d] = 1;
             geo.first[d] = 0;

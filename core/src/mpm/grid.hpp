@@ -88,9 +88,13 @@ struct Grid {
     // z+) that carry the face's condition (face_layer of the kernel).
     std::array<std::vector<std::uint32_t>, 6> face_nodes;
 
-    // The domain [origin, origin + cells h] with kGhostLayers around it.
+    // The domain [origin, origin + cells h] with kGhostLayers around it; on
+    // one of several ranks, the nodes of its cells [box_lo, box_hi) with
+    // kGhostLayers around them (Decomposition::nodes).
     Grid(int dim, const std::array<double, 3> &origin, const std::array<double, 3> &size, double h,
          ShapeKind shape);
+    Grid(int dim, const std::array<double, 3> &origin, const std::array<double, 3> &size, double h,
+         ShapeKind shape, const std::array<int, 3> &box_lo, const std::array<int, 3> &box_hi);
     // Clears the P2G accumulators.
     void reset();
     // Clears the momentum slots alone (before MUSL's remap).

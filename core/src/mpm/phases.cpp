@@ -13,25 +13,39 @@
 
 namespace talus {
 
+// On several ranks each P2G is followed by the sums of the nodes the ranks
+// share (Halo), of the fields it wrote.
 void Simulation::Impl::p2g_momentum() {
-    auto tm = timer(Phase::p2g);
-    talus::p2g_momentum(p2g_sources(), grid.acc.data());
+    {
+        auto tm = timer(Phase::p2g);
+        talus::p2g_momentum(p2g_sources(), grid.acc.data());
+    }
+    if (comm.distributed()) exchange(Halo::kMomentumFields);
 }
 
 void Simulation::Impl::p2g_forces() {
-    auto tm = timer(Phase::p2g);
-    talus::p2g_forces(p2g_sources(), grid.acc.data());
+    {
+        auto tm = timer(Phase::p2g);
+        talus::p2g_forces(p2g_sources(), grid.acc.data());
+    }
+    if (comm.distributed()) exchange(Halo::kForceFields);
 }
 
 void Simulation::Impl::p2g_momentum_and_forces() {
-    auto tm = timer(Phase::p2g);
-    talus::p2g_momentum_and_forces(p2g_sources(), grid.acc.data());
+    {
+        auto tm = timer(Phase::p2g);
+        talus::p2g_momentum_and_forces(p2g_sources(), grid.acc.data());
+    }
+    if (comm.distributed()) exchange(Halo::kAllFields);
 }
 
 void Simulation::Impl::p2g_remap() {
-    auto tm = timer(Phase::p2g);
-    grid.clear_momentum();
-    talus::p2g_remap(p2g_sources(), grid.acc.data());
+    {
+        auto tm = timer(Phase::p2g);
+        grid.clear_momentum();
+        talus::p2g_remap(p2g_sources(), grid.acc.data());
+    }
+    if (comm.distributed()) exchange(Halo::kRemapFields);
 }
 
 void Simulation::Impl::grid_velocity(double t) {
@@ -134,7 +148,13 @@ void Simulation::Impl::material_update(double t, double dt) {
             auto tm = timer(Phase::dilation);
             inv = dilation_sums(sets, grid.geo, dt, dilation);
         }
-        if (inv) inverted(*inv, t);
+        std::exception_ptr error;
+        try {
+            if (inv) inverted(*inv, t);
+        } catch (...) {
+            error = std::current_exception();
+        }
+        agree(error);
     }
     UpdateFailures failures;
     {
@@ -147,8 +167,14 @@ void Simulation::Impl::material_update(double t, double dt) {
 }
 
 void Simulation::Impl::update_failed(const UpdateFailures &f, double t) {
-    if (const Inversion *inv = f.inverted.first()) inverted(*inv, t);
-    if (const MaterialFailure *m = f.material.first()) material_failed(*m, step + 1);
+    std::exception_ptr error;
+    try {
+        if (const Inversion *inv = f.inverted.first()) inverted(*inv, t);
+        if (const MaterialFailure *m = f.material.first()) material_failed(*m, step + 1);
+    } catch (...) {
+        error = std::current_exception();
+    }
+    agree(error); // on several ranks, every rank learns of a failure on one
 }
 
 void Simulation::Impl::move_particles(PositionStep how) {
@@ -156,28 +182,45 @@ void Simulation::Impl::move_particles(PositionStep how) {
     step_ended(talus::move_particles(sets, grid.geo, domain, order, how, step_ends));
 }
 
-void Simulation::Impl::step_ended(const StepEnd &end) {
+void Simulation::Impl::step_ended(const StepEnd &mine) {
+    // Over all ranks: the next dt's speed and the counts.
+    StepEnd end = mine;
+    if (comm.distributed()) {
+        double peak[2] = {end.max_speed, end.held_depth};
+        long counts[2] = {end.held, end.outside};
+        comm.max(peak, 2);
+        comm.sum(counts, 2);
+        end = StepEnd{peak[0], counts[0], peak[1], counts[1]};
+    }
     max_speed = end.max_speed;
     held_at_faces += end.held;
     held_depth = std::max(held_depth, end.held_depth);
-    if (end.outside == 0) return;
-    const bool remove = sc.solver.leave == LeavePolicy::remove;
-    const Leaving out = collect_leaving(sets, domain, sc.dim, remove, group_names);
-    order.invalidate(); // indices moved
-    if (out.count == 0) return;
-    if (remove) {
-        removed += out.count;
-        return;
+    if (end.outside > 0) {
+        const bool remove = sc.solver.leave == LeavePolicy::remove;
+        const Leaving out = collect_leaving(sets, domain, sc.dim, remove, group_names);
+        order.invalidate(); // indices moved
+        const long left = comm.sum(out.count);
+        if (left > 0 && remove) removed += left;
+        if (left > 0 && !remove) {
+            // The first rank's list with them (each lists at most ten).
+            std::string list;
+            for (const std::string &r : out.first)
+                list.append("\n  ").append(r);
+            if (out.count > static_cast<long>(out.first.size()))
+                list.append(fmt::format("\n  ... and {} more{}",
+                                        out.count - static_cast<long>(out.first.size()),
+                                        comm.distributed() ? " on this rank" : ""));
+            const auto first = comm.first_failure(out.count > 0 ? &list : nullptr);
+            throw Error(fmt::format("step {} (t = {:.6g} s): {} particle(s) left the grid (policy "
+                                    "solver.leaving_grid: stop; use 'remove' to delete them "
+                                    "instead):{}",
+                                    step + 1, step_end, left, first ? first->message : ""));
+        }
     }
-    std::string list;
-    for (const std::string &r : out.first)
-        list.append("\n  ").append(r);
-    if (out.count > static_cast<long>(out.first.size()))
-        list.append(
-            fmt::format("\n  ... and {} more", out.count - static_cast<long>(out.first.size())));
-    throw Error(fmt::format("step {} (t = {:.6g} s): {} particle(s) left the grid (policy "
-                            "solver.leaving_grid: stop; use 'remove' to delete them instead):{}",
-                            step + 1, step_end, out.count, list));
+    if (comm.distributed()) {
+        migrate();
+        rebalance_if_uneven();
+    }
 }
 
 [[noreturn]] void Simulation::Impl::inverted(const Inversion &inv, double t) const {

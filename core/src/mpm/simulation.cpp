@@ -2,6 +2,7 @@
 // the particle order, and runs the scheme (schemes.cpp).
 #include "simulation_state.hpp"
 
+#include "migration.hpp"
 #include "parallel.hpp"
 #include "particle_generation.hpp"
 
@@ -9,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <exception>
 #include <limits>
 
 namespace talus {
@@ -94,6 +96,21 @@ initial_particles(const Scenario &sc, const std::vector<StageSpec> &stages,
     return sets;
 }
 
+// Cells of the whole domain per axis (as the grid counts them).
+std::array<int, 3> domain_cells(const Scenario &sc) {
+    std::array<int, 3> n{1, 1, 1};
+    for (std::size_t d = 0; d < static_cast<std::size_t>(sc.dim); ++d)
+        n[d] = static_cast<int>(std::lround(sc.size[d] / sc.cell));
+    return n;
+}
+
+// The grid this rank starts with: the whole domain on one rank; on several
+// a placeholder of one cell's nodes until distribute() knows its box.
+Grid initial_grid(const Scenario &sc, const Comm &comm) {
+    if (!comm.distributed()) return Grid(sc.dim, sc.origin, sc.size, sc.cell, sc.solver.shape);
+    return Grid(sc.dim, sc.origin, sc.size, sc.cell, sc.solver.shape, {0, 0, 0}, {0, 0, 0});
+}
+
 } // namespace
 
 Domain domain_of(const Scenario &sc, const Conditions &c) {
@@ -108,9 +125,10 @@ Domain domain_of(const Scenario &sc, const Conditions &c) {
 }
 
 Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options, const Snapshot *restore)
-    : sc(checked(scenario)), opt(options), stages(stages_of(sc)), first_id(first_ids(sc)),
-      grid(sc.dim, sc.origin, sc.size, sc.cell, sc.solver.shape),
-      boundary(sc, stages[0].conditions, grid, 0.0), instances(make_instances(sc)),
+    : sc(checked(scenario)), opt(options), comm(opt.comm), decomp(sc.dim, domain_cells(sc)),
+      stages(stages_of(sc)), first_id(first_ids(sc)), grid(initial_grid(sc, comm)),
+      boundary(comm.distributed() ? Boundary() : Boundary(sc, stages[0].conditions, grid, 0.0)),
+      instances(make_instances(sc)),
       sets(restore ? make_sets(sc, columns_of(sc.solver), instances)
                    : initial_particles(sc, stages, first_id, instances)),
       order(grid.geo, sets.size()), loads(sc, stages[0].conditions, Vec3{0, 0, 0}, 0.0),
@@ -119,6 +137,17 @@ Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options, const Sn
       isa(talus::kernel_isa()), velocity_motion(velocity_motion_of(sc.solver)) {
     for (const GroupSpec &g : sc.groups)
         group_names.push_back(g.name);
+    if (comm.distributed()) {
+        // What several ranks do not do yet (docs/mpi.md, "Not yet").
+        if (restore)
+            throw Error("continuing from a checkpoint on several ranks is not supported yet; "
+                        "restart on one rank");
+        if (stages.size() > 1)
+            throw Error(fmt::format("{}: a scenario with stages does not run on several ranks "
+                                    "yet; run it on one",
+                                    sc.file));
+        distribute();
+    }
     if (sc.solver.cell_averaged_dilation) {
         dilation.div.assign(grid.n_cells, 0.0);
         dilation.vol.assign(grid.n_cells, 0.0);
@@ -133,8 +162,14 @@ Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options, const Sn
     UpdateFailures failures;
     materials.run(sets, Increment{}, /*stored_L=*/false, failures);
     materials.collect();
-    if (const MaterialFailure *f = failures.material.first()) material_failed(*f, 0);
+    std::exception_ptr error;
+    try {
+        if (const MaterialFailure *f = failures.material.first()) material_failed(*f, 0);
+    } catch (...) {
+        error = std::current_exception();
+    }
     failed_call.reset(); // the constructor throws: nobody to replay for
+    agree(error);
     order.sort(sets);
     arm_quiescence();
 }
@@ -219,6 +254,7 @@ double Simulation::Impl::critical_dt() const {
         });
         worst = std::max(worst, m.v);
     }
+    worst = comm.max(worst);
     return worst > 0.0 ? sc.solver.cfl * sc.cell / worst : std::numeric_limits<double>::infinity();
 }
 
@@ -244,16 +280,32 @@ std::vector<ParticleSet> &Simulation::sets() { return impl_->sets; }
 const Scenario &Simulation::scenario() const { return impl_->sc; }
 const std::vector<std::string> &Simulation::warnings() const { return impl_->warnings; }
 const std::optional<FailedCall> &Simulation::failed_call() const { return impl_->failed_call; }
-double Simulation::grid_mass() const { return impl_->grid.mass(); }
+double Simulation::grid_mass() const {
+    const Impl &g = *impl_;
+    if (!g.comm.distributed()) return g.grid.mass();
+    // Each node once: on the rank that owns it.
+    double m = 0.0;
+    for (std::size_t i = 0; i < g.grid.n_nodes; ++i)
+        if (g.decomp.node_owner(g.grid.geo.global(i)) == g.comm.rank())
+            m += g.grid.acc[node::kRecord * i + node::kMass];
+    return g.comm.sum(m);
+}
 int Simulation::max_threads() { return par::max_threads(); }
 const char *Simulation::kernel_isa() const { return isa_name(impl_->isa); }
 long Simulation::parallel_regions() { return par::regions(); }
 
 std::size_t Simulation::particle_count() const {
-    std::size_t n = 0;
+    long n = 0;
     for (const ParticleSet &s : impl_->sets)
-        n += s.n;
-    return n;
+        n += static_cast<long>(s.n);
+    return static_cast<std::size_t>(impl_->comm.sum(n));
+}
+
+RankTraffic Simulation::traffic() const { return impl_->traffic; }
+int Simulation::rank() const { return impl_->comm.rank(); }
+std::array<int, 6> Simulation::cell_box() const {
+    const CellBox &b = impl_->decomp.box(impl_->comm.rank());
+    return {b.lo[0], b.lo[1], b.lo[2], b.hi[0], b.hi[1], b.hi[2]};
 }
 
 std::array<double, Simulation::kPhases> Simulation::phase_seconds() const {
@@ -261,9 +313,9 @@ std::array<double, Simulation::kPhases> Simulation::phase_seconds() const {
 }
 
 const char *Simulation::phase_name(int k) {
-    static const char *names[kPhases] = {"time_step",       "reorder",       "p2g",
-                                         "grid_update",     "g2p",           "dilation",
-                                         "material_update", "move_particles"};
+    static const char *names[kPhases] = {
+        "time_step",       "reorder",        "p2g",           "grid_update", "g2p", "dilation",
+        "material_update", "move_particles", "halo_exchange", "migration"};
     return names[k];
 }
 

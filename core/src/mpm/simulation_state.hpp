@@ -6,8 +6,10 @@
 #pragma once
 
 #include "boundary.hpp"
+#include "decomposition.hpp"
 #include "g2p.hpp"
 #include "grid.hpp"
+#include "halo.hpp"
 #include "kinematics.hpp"
 #include "loads.hpp"
 #include "material_update.hpp"
@@ -19,6 +21,7 @@
 
 #include <array>
 #include <chrono>
+#include <exception>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -37,7 +40,9 @@ enum class Phase {
     g2p,
     dilation,
     material_update,
-    move_particles
+    move_particles,
+    halo_exchange,
+    migration
 };
 
 // A scheme's step as the run will take it, chosen once at set-up.
@@ -55,6 +60,12 @@ Domain domain_of(const Scenario &sc, const Conditions &c);
 struct Simulation::Impl {
     const Scenario &sc;
     SolverOptions opt;
+    const Comm &comm; // opt.comm
+    // The cells each rank owns, and this rank's nodes shared with others
+    // (one rank: all cells, nothing shared).
+    Decomposition decomp;
+    Halo halo;
+    RankTraffic traffic;
     std::vector<StageSpec> stages;      // stages_of(sc)
     std::vector<std::int64_t> first_id; // per group: the id of its first particle
     std::size_t stage = 0;
@@ -120,8 +131,27 @@ struct Simulation::Impl {
     void material_update(double t, double dt);
     void move_particles(PositionStep step);
     // What follows either: the next dt's speed, the faces' counts, the
-    // particles that left the grid.
+    // particles that left the grid, and those that go to another rank.
     void step_ended(const StepEnd &end);
+
+    // Several ranks (docs/mpi.md). Splits the cells among the ranks by the
+    // generated particles (every rank generated them all) and keeps this
+    // rank's.
+    void distribute();
+    // The shared nodes' `fields` (Halo) summed over the ranks, after a P2G.
+    void exchange(unsigned fields);
+    // Particles to the rank owning their cell.
+    void migrate();
+    // Every solver.load_balance.every steps: the cells shared anew by the
+    // particles' current places if the ranks' counts are too uneven, the
+    // grid, boundary, halo and ordering remade for the new boxes and the
+    // particles moved to their new ranks.
+    void rebalance_if_uneven();
+    // This rank's grid, boundary, halo and ordering for decomp.
+    void take_box();
+    // Every rank learns whether one failed: `error` (this rank's, if any)
+    // is rethrown on the lowest failed rank, the others throw its message.
+    void agree(std::exception_ptr error) const;
 
     const Conditions &conditions() const { return stages[stage].conditions; }
     // The changes a stage makes when it begins (stages.cpp).

@@ -136,6 +136,12 @@ double Simulation::Impl::kinetic_energy_ratio() const {
         });
         total.merge(part);
     }
+    if (comm.distributed()) {
+        double both[2] = {total.kinetic, total.strain};
+        comm.sum(both, 2);
+        total.kinetic = both[0];
+        total.strain = both[1];
+    }
     if (total.kinetic == 0.0) return 0.0;
     return total.strain > 0.0 ? total.kinetic / total.strain
                               : std::numeric_limits<double>::infinity();

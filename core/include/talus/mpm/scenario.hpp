@@ -155,6 +155,11 @@ struct SolverSpec {
     bool second_order_position = false;
     bool cell_averaged_dilation = false;
     LeavePolicy leave = LeavePolicy::stop;
+    // On several ranks (docs/mpi.md): every `rebalance_every` steps, the
+    // cells are shared anew when the most particles on a rank exceed the
+    // mean by this factor. Ignored on one rank.
+    double rebalance_imbalance = 1.2;
+    int rebalance_every = 10;
 };
 
 // Damping of the nodal motion for quasi-static work (docs/theory.md,

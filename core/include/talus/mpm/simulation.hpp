@@ -3,6 +3,7 @@
 // through it equation by equation, docs/architecture.md through the files.
 #pragma once
 
+#include <talus/mpm/comm.hpp>
 #include <talus/mpm/particles.hpp>
 #include <talus/mpm/scenario.hpp>
 #include <talus/mpm/snapshot.hpp>
@@ -54,6 +55,22 @@ struct SolverOptions {
     // cell order (checked every step at no extra pass), so that neighbours
     // on the grid stay neighbours in memory; 0 disables sorting.
     double sort_disorder = 0.01;
+    // The ranks the run is spread over (docs/mpi.md): each holds the
+    // particles of its part of the grid. With more than one, step(),
+    // diagnostics(), critical_dt(), kinetic_energy_ratio(),
+    // particle_count() and grid_mass() are collective: every rank calls
+    // them, in the same order; sets() are this rank's particles.
+    Comm comm = Comm::serial();
+};
+
+// What one rank sent to the others, summed over the steps so far.
+struct RankTraffic {
+    std::size_t halo_bytes = 0;      // shared node records after each P2G
+    std::size_t migration_bytes = 0; // particles moving to their cell's rank
+    long migrated = 0;               // particles sent
+    long rebalances = 0;
+    std::size_t shared_nodes = 0; // nodes this rank holds with others
+    int neighbours = 0;
 };
 
 // One plugin call that failed, as the plugin received it (ABI conventions:
@@ -143,9 +160,14 @@ class Simulation {
     double grid_mass() const;
     // Wall time spent in each phase of the cycle so far (for profiling),
     // named as the functions the scheme calls (docs/theory.md).
-    static constexpr int kPhases = 8;
+    static constexpr int kPhases = 10;
     std::array<double, kPhases> phase_seconds() const;
     static const char *phase_name(int k);
+    // This rank's messages (zero on one rank).
+    RankTraffic traffic() const;
+    // This rank and its box of cells, [lo, hi) per axis.
+    int rank() const;
+    std::array<int, 6> cell_box() const;
     // Threads the solver's parallel loops use.
     static int max_threads();
     // The instruction set of the transfer kernels this run uses (generic,

@@ -1,0 +1,93 @@
+// The ranks a run is spread over (docs/mpi.md): the one place the core
+// talks to MPI. A run on one rank, or a build without MPI, has the serial
+// communicator, whose collectives return their argument: the solver's
+// serial path calls none of them.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace talus {
+
+class Comm {
+  public:
+    // One rank (no MPI call is ever made through it).
+    static Comm serial();
+    // MPI_COMM_WORLD; the serial communicator when MPI is not initialised
+    // or the build has none.
+    static Comm world();
+    // Whether this build has MPI.
+    static bool built_with_mpi();
+
+    int rank() const { return rank_; }
+    int size() const { return size_; }
+    bool distributed() const { return size_ > 1; }
+
+    // Reductions over all ranks (collective: every rank calls them in the
+    // same order). MPI's reductions are deterministic for a given rank
+    // count (Open MPI's for a given count and message size), so every rank
+    // gets the same bits.
+    double max(double v) const;
+    double sum(double v) const;
+    long sum(long v) const;
+    void sum(double *v, std::size_t n) const;
+    void sum(long *v, std::size_t n) const;
+    void max(double *v, std::size_t n) const;
+
+    // Sends bytes to each of `peers` and receives from each of them
+    // (collective among the peers: each rank lists the ranks it exchanges
+    // with, symmetrically; an empty buffer is sent too). Returns what came
+    // from peers[k] in [k].
+    std::vector<std::vector<std::byte>> exchange(const std::vector<int> &peers,
+                                                 const std::vector<std::vector<std::byte>> &send,
+                                                 int tag) const;
+    // Every rank sends send[r] to rank r (collective).
+    std::vector<std::vector<std::byte>>
+    all_to_all(const std::vector<std::vector<std::byte>> &send) const;
+    // Rank 0 receives every rank's bytes in rank order; the others get an
+    // empty vector (collective).
+    std::vector<std::vector<std::byte>> gather(const std::vector<std::byte> &mine) const;
+    // The same bytes on every rank, from `root` (collective).
+    std::vector<std::byte> broadcast(std::vector<std::byte> bytes, int root) const;
+
+    // A failure on some rank (collective): each rank says whether it has
+    // failed, with its message. Returns, on every rank, the lowest failed
+    // rank and its message; nothing when none failed.
+    struct Failure {
+        int rank = 0;
+        std::string message;
+    };
+    std::optional<Failure> first_failure(const std::string *mine) const;
+
+    void barrier() const;
+
+    struct Handle; // the MPI communicator (comm.cpp)
+
+  private:
+    std::shared_ptr<const Handle> handle_;
+    int rank_ = 0, size_ = 1;
+};
+
+// MPI for the lifetime of a command that runs a simulation on several
+// ranks: initialised by the first instance (threads: the OpenMP loops run
+// between MPI calls, from the main thread), finalised when it goes. A
+// build without MPI, or a process started without a launcher, still works
+// (Open MPI initialises a singleton).
+class MpiSession {
+  public:
+    MpiSession(int *argc, char ***argv);
+    ~MpiSession();
+    MpiSession(const MpiSession &) = delete;
+    MpiSession &operator=(const MpiSession &) = delete;
+    // Ends every rank at once after an error on one (MPI_Abort): a rank that
+    // has failed alone cannot leave the others waiting in a collective.
+    [[noreturn]] static void abort(int code);
+
+  private:
+    bool owner_ = false;
+};
+
+} // namespace talus

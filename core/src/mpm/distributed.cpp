@@ -1,0 +1,129 @@
+// A Simulation on several ranks (docs/mpi.md): its set-up from the
+// generated particles, and what the step adds to the serial cycle: the
+// shared nodes' sums after each P2G, the particles' migration after the
+// step's end, and agreement on a failure.
+#include "simulation_state.hpp"
+
+#include "migration.hpp"
+
+#include <fmt/format.h>
+
+namespace talus {
+
+void Simulation::Impl::distribute() {
+    // Every rank generated every particle (the same ones, in the same
+    // order): the weights are global without a message.
+    const GridGeometry &geo = grid.geo;
+    auto weight = [&](const CellBox &box, int axis) {
+        const std::size_t a = static_cast<std::size_t>(axis);
+        std::vector<double> w(static_cast<std::size_t>(box.hi[a] - box.lo[a]), 0.0);
+        for (const ParticleSet &s : sets)
+            for (std::size_t p = 0; p < s.n; ++p) {
+                std::array<int, 3> c{0, 0, 0};
+                for (int d = 0; d < sc.dim; ++d)
+                    c[static_cast<std::size_t>(d)] =
+                        geo.cell(d, s.x[static_cast<std::size_t>(d)][p]);
+                if (box.contains(c)) w[static_cast<std::size_t>(c[a] - box.lo[a])] += 1.0;
+            }
+        return w;
+    };
+    decomp = Decomposition::bisect(sc.dim, geo.cells, comm.size(), weight);
+    take_box();
+    // This rank's particles, in generation order.
+    for (ParticleSet &s : sets) {
+        std::size_t keep = 0;
+        for (std::size_t p = 0; p < s.n; ++p) {
+            std::array<int, 3> c{0, 0, 0};
+            for (int d = 0; d < sc.dim; ++d)
+                c[static_cast<std::size_t>(d)] =
+                    grid.geo.cell(d, s.x[static_cast<std::size_t>(d)][p]);
+            if (decomp.owner(c) == comm.rank()) s.move(p, keep++);
+        }
+        s.resize(keep);
+    }
+}
+
+void Simulation::Impl::take_box() {
+    const CellBox &mine = decomp.box(comm.rank());
+    grid = Grid(sc.dim, sc.origin, sc.size, sc.cell, sc.solver.shape, mine.lo, mine.hi);
+    boundary = Boundary(sc, conditions(), grid, stage_start, comm);
+    order = Ordering(grid.geo, sets.size());
+    halo = Halo(decomp, comm.rank(), grid.geo, kGhostLayers);
+    traffic.shared_nodes = halo.shared_nodes();
+    traffic.neighbours = static_cast<int>(halo.neighbours().size());
+}
+
+void Simulation::Impl::rebalance_if_uneven() {
+    if ((step + 1) % sc.solver.rebalance_every != 0) return;
+    auto tm = timer(Phase::migration);
+    long n = 0;
+    for (const ParticleSet &s : sets)
+        n += static_cast<long>(s.n);
+    const double most = comm.max(static_cast<double>(n));
+    const double mean = static_cast<double>(comm.sum(n)) / comm.size();
+    if (!(most > sc.solver.rebalance_imbalance * mean)) return;
+    // Each rank counts its own particles per plane; the sum is global.
+    const GridGeometry &geo = grid.geo;
+    auto weight = [&](const CellBox &box, int axis) {
+        const std::size_t a = static_cast<std::size_t>(axis);
+        std::vector<double> w(static_cast<std::size_t>(box.hi[a] - box.lo[a]), 0.0);
+        for (const ParticleSet &s : sets)
+            for (std::size_t p = 0; p < s.n; ++p) {
+                std::array<int, 3> c{0, 0, 0};
+                for (int d = 0; d < sc.dim; ++d)
+                    c[static_cast<std::size_t>(d)] =
+                        geo.cell(d, s.x[static_cast<std::size_t>(d)][p]);
+                if (box.contains(c)) w[static_cast<std::size_t>(c[a] - box.lo[a])] += 1.0;
+            }
+        comm.sum(w.data(), w.size());
+        return w;
+    };
+    Decomposition next = Decomposition::bisect(sc.dim, geo.cells, comm.size(), weight);
+    bool same = true;
+    for (int r = 0; r < comm.size(); ++r)
+        same = same && next.box(r) == decomp.box(r);
+    if (same) return;
+    decomp = std::move(next);
+    const Migration m =
+        talus::migrate(comm, decomp, decomp.neighbours(comm.rank(), kGhostLayers), grid.geo, sets);
+    traffic.migrated += m.sent;
+    traffic.migration_bytes += m.bytes_sent;
+    take_box();
+    ++traffic.rebalances;
+}
+
+void Simulation::Impl::exchange(unsigned fields) {
+    auto tm = timer(Phase::halo_exchange);
+    traffic.halo_bytes += halo.sum(comm, grid.acc.data(), fields);
+}
+
+void Simulation::Impl::migrate() {
+    auto tm = timer(Phase::migration);
+    const Migration m = talus::migrate(comm, decomp, halo.neighbours(), grid.geo, sets);
+    traffic.migrated += m.sent;
+    traffic.migration_bytes += m.bytes_sent;
+    if (m.sent > 0 || m.received > 0) order.invalidate(); // indices moved
+}
+
+void Simulation::Impl::agree(std::exception_ptr error) const {
+    if (!comm.distributed()) {
+        if (error) std::rethrow_exception(error);
+        return;
+    }
+    std::string message;
+    if (error) {
+        try {
+            std::rethrow_exception(error);
+        } catch (const std::exception &e) {
+            message = e.what();
+        } catch (...) {
+            message = "an unknown exception";
+        }
+    }
+    const std::optional<Comm::Failure> first = comm.first_failure(error ? &message : nullptr);
+    if (!first) return;
+    if (first->rank == comm.rank()) std::rethrow_exception(error);
+    throw Error(first->message);
+}
+
+} // namespace talus
