@@ -24,6 +24,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -180,7 +181,9 @@ void memory_bandwidth(int threads, int repeat) {
 } // namespace
 
 int main(int argc, char **argv) {
-    talus::MpiSession mpi(&argc, &argv);
+    // MPI only under a launcher: a plain run's memory is the solver's.
+    std::optional<talus::MpiSession> mpi;
+    if (talus::MpiSession::launched_ranks() > 1) mpi.emplace(&argc, &argv);
     const talus::Comm comm = talus::Comm::world();
     const bool rank0 = comm.rank() == 0;
     // 25 steps: the particle re-sort period, so every timed window pays

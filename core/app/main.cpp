@@ -17,6 +17,7 @@
 #include "point_plot.hpp"
 #include <talus/driver/run.hpp>
 #include <talus/input/yaml_input.hpp>
+#include <talus/mpm/comm.hpp>
 #include <talus/mpm/scenario.hpp>
 
 #include <CLI/CLI.hpp>
@@ -317,13 +318,12 @@ int main(int argc, char **argv) {
             // Started by mpirun on several ranks: each rank would run the
             // whole scenario into the same files. The solver runs on
             // several ranks (docs/mpi.md), the run's output does not yet.
-            for (const char *var : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_SIZE"})
-                if (const char *n = std::getenv(var); n && std::atoi(n) > 1)
-                    throw talus::Error(fmt::format(
-                        "talus run was started on {} ranks ({}={}): `talus run` does not "
-                        "write its output from several ranks yet, and each rank would run the "
-                        "whole scenario into the same files; run it on one rank (docs/mpi.md)",
-                        n, var, n));
+            if (const int ranks = talus::MpiSession::launched_ranks(); ranks > 1)
+                throw talus::Error(fmt::format(
+                    "talus run was started on {} ranks: `talus run` does not write its output "
+                    "from several ranks yet, and each rank would run the whole scenario into "
+                    "the same files; run it on one rank (docs/mpi.md)",
+                    ranks));
             if (scenario_file.empty() && restart_file.empty())
                 throw talus::Error("talus run: give a scenario (SCENARIO.yaml) or --restart "
                                    "CHECKPOINT.h5");

@@ -285,4 +285,11 @@ void MpiSession::abort(int code) { std::exit(code); }
 
 Comm Comm::serial() { return Comm{}; }
 
+int MpiSession::launched_ranks() {
+    for (const char *var : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_SIZE", "SLURM_NTASKS"})
+        if (const char *n = std::getenv(var))
+            if (const int k = std::atoi(n); k > 0) return k;
+    return 1;
+}
+
 } // namespace talus

@@ -82,6 +82,9 @@ class MpiSession {
     ~MpiSession();
     MpiSession(const MpiSession &) = delete;
     MpiSession &operator=(const MpiSession &) = delete;
+    // Whether a launcher (mpirun, srun) started this process: the ranks it
+    // started, from its environment; 1 otherwise.
+    static int launched_ranks();
     // Ends every rank at once after an error on one (MPI_Abort): a rank that
     // has failed alone cannot leave the others waiting in a collective.
     [[noreturn]] static void abort(int code);
