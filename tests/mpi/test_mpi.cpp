@@ -244,3 +244,36 @@ TEST(Mpi, AMohrCoulombColumnCollapsingAcrossTheRanksMatchesOneRank) {
         }
     }
 }
+
+// Particles leaving through a free face on one rank's side stop every rank
+// with the same report (no rank left waiting in an exchange), naming the
+// particles as one rank would.
+TEST(Mpi, ParticlesLeavingTheGridStopEveryRankWithOneReport) {
+    const std::string yaml =
+        "talus: 1\ndimension: 2\ngrid: {origin: [0, 0], size: [1, 0.5], cell: 0.025}\n"
+        "materials:\n  m: {model: linear_elastic, density: 1000, youngs_modulus: 1.0e6, "
+        "poisson_ratio: 0.3}\n"
+        "groups:\n  a: {material: m, particles_per_cell: 2, velocity: [4, 0],\n"
+        "      shape: {box: {min: [0.1, 0.1], max: [0.9, 0.3]}}}\n"
+        "boundaries: {y-: slip}\ngravity: [0, -9.81]\ntime: {end: 1}\n";
+    const Comm comm = Comm::world();
+    auto s = talus::test::sim_from_text(yaml);
+    talus::SolverOptions opt;
+    opt.comm = comm;
+    s->sim = std::make_unique<talus::Simulation>(s->scenario, opt);
+    std::string message;
+    try {
+        for (int k = 0; k < 400; ++k)
+            s->sim->step(1.0);
+    } catch (const talus::Error &e) {
+        message = e.what();
+    }
+    EXPECT_NE(message.find("left the grid"), std::string::npos) << message;
+    if (comm.rank() == 0) std::printf("  %d ranks: %s\n", comm.size(), message.c_str());
+    // Every rank stopped at the same step with the same text.
+    std::vector<std::byte> mine(message.size());
+    std::memcpy(mine.data(), message.data(), message.size());
+    const auto all = comm.gather(mine);
+    for (const auto &m : all)
+        EXPECT_EQ(std::string(reinterpret_cast<const char *>(m.data()), m.size()), message);
+}
