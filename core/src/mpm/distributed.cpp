@@ -10,23 +10,31 @@
 
 namespace talus {
 
+namespace {
+
+// The particles of `sets` per cell plane of `box` across `axis` (the
+// bisection's weights).
+std::vector<double> plane_counts(const std::vector<ParticleSet> &sets, const GridGeometry &geo,
+                                 const CellBox &box, int axis) {
+    const std::size_t a = static_cast<std::size_t>(axis);
+    std::vector<double> w(static_cast<std::size_t>(box.hi[a] - box.lo[a]), 0.0);
+    for (const ParticleSet &s : sets)
+        for (std::size_t p = 0; p < s.n; ++p) {
+            std::array<int, 3> c{0, 0, 0};
+            for (int d = 0; d < geo.dim; ++d)
+                c[static_cast<std::size_t>(d)] = geo.cell(d, s.x[static_cast<std::size_t>(d)][p]);
+            if (box.contains(c)) w[static_cast<std::size_t>(c[a] - box.lo[a])] += 1.0;
+        }
+    return w;
+}
+
+} // namespace
+
 void Simulation::Impl::distribute() {
     // Every rank generated every particle (the same ones, in the same
     // order): the weights are global without a message.
     const GridGeometry &geo = grid.geo;
-    auto weight = [&](const CellBox &box, int axis) {
-        const std::size_t a = static_cast<std::size_t>(axis);
-        std::vector<double> w(static_cast<std::size_t>(box.hi[a] - box.lo[a]), 0.0);
-        for (const ParticleSet &s : sets)
-            for (std::size_t p = 0; p < s.n; ++p) {
-                std::array<int, 3> c{0, 0, 0};
-                for (int d = 0; d < sc.dim; ++d)
-                    c[static_cast<std::size_t>(d)] =
-                        geo.cell(d, s.x[static_cast<std::size_t>(d)][p]);
-                if (box.contains(c)) w[static_cast<std::size_t>(c[a] - box.lo[a])] += 1.0;
-            }
-        return w;
-    };
+    auto weight = [&](const CellBox &box, int axis) { return plane_counts(sets, geo, box, axis); };
     decomp = Decomposition::bisect(sc.dim, geo.cells, comm.size(), weight);
     take_box();
     // This rank's particles, in generation order.
@@ -65,16 +73,7 @@ void Simulation::Impl::rebalance_if_uneven() {
     // Each rank counts its own particles per plane; the sum is global.
     const GridGeometry &geo = grid.geo;
     auto weight = [&](const CellBox &box, int axis) {
-        const std::size_t a = static_cast<std::size_t>(axis);
-        std::vector<double> w(static_cast<std::size_t>(box.hi[a] - box.lo[a]), 0.0);
-        for (const ParticleSet &s : sets)
-            for (std::size_t p = 0; p < s.n; ++p) {
-                std::array<int, 3> c{0, 0, 0};
-                for (int d = 0; d < sc.dim; ++d)
-                    c[static_cast<std::size_t>(d)] =
-                        geo.cell(d, s.x[static_cast<std::size_t>(d)][p]);
-                if (box.contains(c)) w[static_cast<std::size_t>(c[a] - box.lo[a])] += 1.0;
-            }
+        std::vector<double> w = plane_counts(sets, geo, box, axis);
         comm.sum(w.data(), w.size());
         return w;
     };
