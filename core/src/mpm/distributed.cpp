@@ -20,9 +20,7 @@ std::vector<double> plane_counts(const std::vector<ParticleSet> &sets, const Gri
     std::vector<double> w(static_cast<std::size_t>(box.hi[a] - box.lo[a]), 0.0);
     for (const ParticleSet &s : sets)
         for (std::size_t p = 0; p < s.n; ++p) {
-            std::array<int, 3> c{0, 0, 0};
-            for (int d = 0; d < geo.dim; ++d)
-                c[static_cast<std::size_t>(d)] = geo.cell(d, s.x[static_cast<std::size_t>(d)][p]);
+            const std::array<int, 3> c = particle_cell(geo, s, p);
             if (box.contains(c)) w[static_cast<std::size_t>(c[a] - box.lo[a])] += 1.0;
         }
     return w;
@@ -41,11 +39,7 @@ void Simulation::Impl::distribute() {
     for (ParticleSet &s : sets) {
         std::size_t keep = 0;
         for (std::size_t p = 0; p < s.n; ++p) {
-            std::array<int, 3> c{0, 0, 0};
-            for (int d = 0; d < sc.dim; ++d)
-                c[static_cast<std::size_t>(d)] =
-                    grid.geo.cell(d, s.x[static_cast<std::size_t>(d)][p]);
-            if (decomp.owner(c) == comm.rank()) s.move(p, keep++);
+            if (decomp.owner(particle_cell(grid.geo, s, p)) == comm.rank()) s.move(p, keep++);
         }
         s.resize(keep);
     }

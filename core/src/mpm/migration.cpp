@@ -65,9 +65,7 @@ Migration migrate(const Comm &comm, const Decomposition &decomp, const std::vect
     for (std::size_t si = 0; si < sets.size(); ++si) {
         const ParticleSet &s = sets[si];
         for (std::size_t p = 0; p < s.n; ++p) {
-            std::array<int, 3> c{0, 0, 0};
-            for (int d = 0; d < geo.dim; ++d)
-                c[static_cast<std::size_t>(d)] = geo.cell(d, s.x[static_cast<std::size_t>(d)][p]);
+            const std::array<int, 3> c = particle_cell(geo, s, p);
             if (mine.contains(c)) [[likely]]
                 continue;
             const int r = decomp.owner(c);
@@ -78,12 +76,11 @@ Migration migrate(const Comm &comm, const Decomposition &decomp, const std::vect
     }
     far = comm.max(far ? 1.0 : 0.0) > 0.0;
     // One message per destination: every set's particles for it.
-    const std::vector<int> &dest = peers;
     std::vector<int> all;
     if (far)
         for (int r = 0; r < comm.size(); ++r)
             all.push_back(r);
-    const std::vector<int> &targets = far ? all : dest;
+    const std::vector<int> &targets = far ? all : peers;
     std::vector<std::vector<std::byte>> out(targets.size());
     for (std::size_t k = 0; k < targets.size(); ++k) {
         if (targets[k] == me) continue;

@@ -9,10 +9,21 @@
 #include <talus/mpm/comm.hpp>
 #include <talus/mpm/particles.hpp>
 
+#include <array>
 #include <cstddef>
 #include <vector>
 
 namespace talus {
+
+// The cell (i, j, k) of particle p, clamped into the domain (the unused
+// axis of 2D is 0): what decides its rank.
+inline std::array<int, 3> particle_cell(const GridGeometry &geo, const ParticleSet &s,
+                                        std::size_t p) {
+    std::array<int, 3> c{0, 0, 0};
+    for (int d = 0; d < geo.dim; ++d)
+        c[static_cast<std::size_t>(d)] = geo.cell(d, s.x[static_cast<std::size_t>(d)][p]);
+    return c;
+}
 
 struct Migration {
     long sent = 0, received = 0; // particles
