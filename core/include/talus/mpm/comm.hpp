@@ -90,7 +90,7 @@ class MpiSession {
     [[noreturn]] static void abort(int code);
 
   private:
-    bool owner_ = false;
+    [[maybe_unused]] bool owner_ = false; // this instance initialised MPI (MPI builds only)
 };
 
 } // namespace talus
