@@ -13,6 +13,7 @@
 #include <fmt/format.h>
 #include <hdf5.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <fcntl.h>
@@ -29,7 +30,9 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr const char *kFormat = "talus checkpoint";
-constexpr long kFormatVersion = 1;
+// 2: a run on several ranks writes one file per rank (the rank and every
+// rank's cell box in each). A format-1 file is one rank's and reads as one.
+constexpr long kFormatVersion = 2;
 
 // An HDF5 handle, closed by its own close function.
 class Handle {
@@ -273,6 +276,10 @@ void write_state(const H5 &h5, hid_t root, const Snapshot &s) {
     h5.attr<int>(root, "slabs_changed", s.slabs_changed ? 1 : 0);
     h5.attr<int>(root, "batch_size", s.batch_size);
     h5.attr<double>(root, "sort_disorder", s.sort_disorder);
+    if (!s.boxes.empty()) {
+        h5.attr<int>(root, "rank", s.rank);
+        h5.dataset(root, "cell_boxes", H5T_NATIVE_INT32, s.boxes.data(), s.boxes.size(), 6);
+    }
     Handle sets = h5.group(root, "sets");
     for (std::size_t k = 0; k < s.sets.size(); ++k) {
         const Snapshot::Set &set = s.sets[k];
@@ -314,6 +321,14 @@ Snapshot read_state(const H5 &h5, hid_t root) {
     s.slabs_changed = h5.read_attr<int>(root, "slabs_changed") != 0;
     s.batch_size = h5.read_attr<int>(root, "batch_size");
     s.sort_disorder = h5.read_attr<double>(root, "sort_disorder");
+    if (H5Lexists(root, "cell_boxes", H5P_DEFAULT) > 0) {
+        s.rank = h5.read_attr<int>(root, "rank");
+        s.boxes.resize(h5.dataset_size(root, "cell_boxes") / 6);
+        h5.read_dataset(root, "cell_boxes", H5T_NATIVE_INT32, s.boxes.data(), s.boxes.size() * 6);
+        if (s.boxes.size() < 2 || s.rank < 0 || static_cast<std::size_t>(s.rank) >= s.boxes.size())
+            h5.fail(fmt::format("rank {} of {}: not a rank of a run on several", s.rank,
+                                s.boxes.size()));
+    }
     Handle sets = h5.open_group(root, "sets");
     for (std::size_t k = 0;; ++k) {
         if (H5Lexists(sets.get(), std::to_string(k).c_str(), H5P_DEFAULT) <= 0) break;
@@ -479,8 +494,8 @@ Checkpoint read_checkpoint(const fs::path &file) {
     if (!h5.has(root, "format") || h5.read_attr_string(root, "format") != kFormat)
         h5.fail("an HDF5 file, but not a Talus checkpoint");
     const long version = h5.read_attr<long>(root, "format_version");
-    if (version != kFormatVersion)
-        h5.fail(fmt::format("checkpoint format {}; this Talus reads format {}", version,
+    if (version < 1 || version > kFormatVersion)
+        h5.fail(fmt::format("checkpoint format {}; this Talus reads formats 1 to {}", version,
                             kFormatVersion));
     Checkpoint c;
     c.talus_version = h5.read_attr_string(root, "talus_version");
@@ -527,6 +542,83 @@ Checkpoint read_checkpoint(const fs::path &file) {
                         o.probe_particles.size());
     }
     c.state = read_state(h5, root);
+    return c;
+}
+
+fs::path rank_checkpoint_file(const fs::path &file, int rank) {
+    if (rank == 0) return file;
+    return file.parent_path() / fmt::format("{}.rank{:04d}.h5", file.stem().string(), rank);
+}
+
+Checkpoint read_checkpoint_for(const fs::path &file, int rank, int ranks) {
+    Checkpoint c = read_checkpoint(file);
+    // What every rank's file must share with rank 0's (kept apart: rank
+    // 0's state moves into the merged one below).
+    struct {
+        long step;
+        int rank;
+        std::vector<std::array<int, 6>> boxes;
+        std::size_t sets;
+    } const first{c.state.step, c.state.rank, c.state.boxes, c.state.sets.size()};
+    if (!first.boxes.empty() && first.rank != 0) {
+        const std::string stem = file.stem().string();
+        throw Error(fmt::format(
+            "{}: the part of rank {} of a checkpoint written by {} ranks; "
+            "restart from rank 0's file, {}",
+            file.string(), first.rank, first.boxes.size(),
+            (file.parent_path() / (stem.substr(0, stem.rfind(".rank")) + ".h5")).string()));
+    }
+    const int written = std::max<int>(1, static_cast<int>(first.boxes.size()));
+    // Another rank's file of the same run and step.
+    auto part = [&](int r) {
+        const fs::path f = rank_checkpoint_file(file, r);
+        if (!fs::exists(f))
+            throw Error(fmt::format("{}: missing: the checkpoint {} was written by {} ranks, each "
+                                    "into its own file",
+                                    f.string(), file.string(), written));
+        Checkpoint k = read_checkpoint(f);
+        if (k.state.step != first.step || k.state.rank != r || k.state.boxes != first.boxes ||
+            k.scenario_sha256 != c.scenario_sha256 || k.state.sets.size() != first.sets)
+            throw Error(fmt::format("{}: not rank {}'s part of {} (another step or run)",
+                                    f.string(), r, file.string()));
+        return k;
+    };
+    if (written == ranks) {
+        if (rank != 0) c.state = part(rank).state;
+        return c;
+    }
+    // Another number of ranks: every particle, in rank order. The
+    // ordering marks are dropped (the solver orders anew); the cut steps
+    // each rank counted are summed.
+    Snapshot all = std::move(c.state);
+    all.rank = 0;
+    all.boxes.clear();
+    for (Snapshot::Set &set : all.sets)
+        set.slab_of.clear();
+    all.slabs_changed = true;
+    for (int r = 1; r < written; ++r) {
+        const Snapshot s = part(r).state;
+        all.cut_steps += s.cut_steps;
+        for (std::size_t k = 0; k < all.sets.size(); ++k) {
+            Snapshot::Set &to = all.sets[k];
+            const Snapshot::Set &from = s.sets[k];
+            if (from.material != to.material || from.columns.size() != to.columns.size())
+                throw Error(fmt::format("{}: its particle set {} differs from rank 0's",
+                                        rank_checkpoint_file(file, r).string(), k));
+            for (std::size_t j = 0; j < to.columns.size(); ++j) {
+                const Snapshot::Column &a = from.columns[j];
+                Snapshot::Column &b = to.columns[j];
+                if (a.name != b.name || a.type != b.type || a.stride != b.stride)
+                    throw Error(fmt::format("{}: its particle set {} has the column '{}' where "
+                                            "rank 0's has '{}'",
+                                            rank_checkpoint_file(file, r).string(), k, a.name,
+                                            b.name));
+                b.bytes.insert(b.bytes.end(), a.bytes.begin(), a.bytes.end());
+            }
+            to.n += from.n;
+        }
+    }
+    c.state = std::move(all);
     return c;
 }
 

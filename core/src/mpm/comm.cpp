@@ -285,6 +285,25 @@ void MpiSession::abort(int code) { std::exit(code); }
 
 Comm Comm::serial() { return Comm{}; }
 
+void Comm::agree(std::exception_ptr error) const {
+    if (!distributed()) {
+        if (error) std::rethrow_exception(error);
+        return;
+    }
+    std::string message;
+    if (error) {
+        try {
+            std::rethrow_exception(error);
+        } catch (const std::exception &e) {
+            message = e.what();
+        } catch (...) {
+            message = "an unknown exception";
+        }
+    }
+    if (const std::optional<Failure> first = first_failure(error ? &message : nullptr))
+        throw AgreedError(first->message);
+}
+
 int MpiSession::launched_ranks() {
     for (const char *var : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_SIZE", "SLURM_NTASKS"})
         if (const char *n = std::getenv(var))

@@ -121,6 +121,64 @@ int Decomposition::build(const CellBox &box, int first_rank, int ranks, const Hi
     return me;
 }
 
+Decomposition Decomposition::from_boxes(int dim, const std::array<int, 3> &cells,
+                                        const std::vector<CellBox> &boxes) {
+    Decomposition d(dim, cells);
+    if (boxes.empty()) throw Error("a decomposition of no boxes");
+    d.boxes_ = boxes;
+    d.tree_.clear();
+    std::vector<int> ranks(boxes.size());
+    std::iota(ranks.begin(), ranks.end(), 0);
+    d.rebuild(CellBox{{0, 0, 0}, cells}, ranks);
+    return d;
+}
+
+// The tree node for `ranks`, whose boxes must tile `region`: a plane that
+// no box straddles splits them into two non-empty sets (a bisection's
+// boxes always have one), down to one box, which must be the region.
+int Decomposition::rebuild(const CellBox &region, const std::vector<int> &ranks) {
+    const int me = static_cast<int>(tree_.size());
+    tree_.emplace_back();
+    auto bad = [&] {
+        return Error(fmt::format("the {} cell boxes do not tile the grid of {} x {} x {} cells as "
+                                 "a bisection does",
+                                 boxes_.size(), cells_[0], cells_[1], cells_[2]));
+    };
+    if (ranks.size() == 1) {
+        if (!(boxes_[static_cast<std::size_t>(ranks[0])] == region)) throw bad();
+        tree_[static_cast<std::size_t>(me)].rank = ranks[0];
+        return me;
+    }
+    for (int axis = 0; axis < dim_; ++axis) {
+        const std::size_t a = static_cast<std::size_t>(axis);
+        for (int r : ranks) {
+            const int cut = boxes_[static_cast<std::size_t>(r)].hi[a];
+            if (cut <= region.lo[a] || cut >= region.hi[a]) continue;
+            std::vector<int> low, high;
+            for (int q : ranks) {
+                const CellBox &b = boxes_[static_cast<std::size_t>(q)];
+                if (b.hi[a] <= cut)
+                    low.push_back(q);
+                else if (b.lo[a] >= cut)
+                    high.push_back(q);
+            }
+            if (low.size() + high.size() != ranks.size()) continue; // a box straddles it
+            CellBox lo_region = region, hi_region = region;
+            lo_region.hi[a] = cut;
+            hi_region.lo[a] = cut;
+            const int l = rebuild(lo_region, low);
+            const int h = rebuild(hi_region, high);
+            Cut &c = tree_[static_cast<std::size_t>(me)];
+            c.axis = axis;
+            c.cut = cut;
+            c.low = l;
+            c.high = h;
+            return me;
+        }
+    }
+    throw bad();
+}
+
 int Decomposition::owner(std::array<int, 3> cell) const {
     for (std::size_t d = 0; d < 3; ++d)
         cell[d] = std::clamp(cell[d], 0, cells_[d] - 1);

@@ -56,6 +56,12 @@ class Decomposition {
     static Decomposition bisect(int dim, const std::array<int, 3> &cells, int ranks,
                                 const Histogram &weight);
 
+    // The decomposition whose rank r owns boxes[r] (a checkpoint's): its
+    // bisection tree is found again from the boxes. Throws talus::Error
+    // when they do not tile the grid as a bisection would.
+    static Decomposition from_boxes(int dim, const std::array<int, 3> &cells,
+                                    const std::vector<CellBox> &boxes);
+
     int dim() const { return dim_; }
     int ranks() const { return static_cast<int>(boxes_.size()); }
     const std::array<int, 3> &cells() const { return cells_; }
@@ -78,6 +84,7 @@ class Decomposition {
         int axis = 0, cut = 0, low = -1, high = -1, rank = -1;
     };
     int build(const CellBox &box, int first_rank, int ranks, const Histogram &weight);
+    int rebuild(const CellBox &region, const std::vector<int> &ranks);
     int dim_ = 2;
     std::array<int, 3> cells_{1, 1, 1};
     std::vector<CellBox> boxes_;

@@ -98,25 +98,6 @@ void Simulation::Impl::migrate() {
     if (m.sent > 0 || m.received > 0) order.invalidate(); // indices moved
 }
 
-void Simulation::Impl::agree(std::exception_ptr error) const {
-    if (!comm.distributed()) {
-        if (error) std::rethrow_exception(error);
-        return;
-    }
-    std::string message;
-    if (error) {
-        try {
-            std::rethrow_exception(error);
-        } catch (const std::exception &e) {
-            message = e.what();
-        } catch (...) {
-            message = "an unknown exception";
-        }
-    }
-    const std::optional<Comm::Failure> first = comm.first_failure(error ? &message : nullptr);
-    if (!first) return;
-    if (first->rank == comm.rank()) std::rethrow_exception(error);
-    throw Error(first->message);
-}
+void Simulation::Impl::agree(std::exception_ptr error) const { comm.agree(error); }
 
 } // namespace talus

@@ -211,10 +211,11 @@ void Simulation::Impl::step_ended(const StepEnd &mine) {
                                         out.count - static_cast<long>(out.first.size()),
                                         comm.distributed() ? " on this rank" : ""));
             const auto first = comm.first_failure(out.count > 0 ? &list : nullptr);
-            throw Error(fmt::format("step {} (t = {:.6g} s): {} particle(s) left the grid (policy "
-                                    "solver.leaving_grid: stop; use 'remove' to delete them "
-                                    "instead):{}",
-                                    step + 1, step_end, left, first ? first->message : ""));
+            fail_together(
+                comm, fmt::format("step {} (t = {:.6g} s): {} particle(s) left the grid (policy "
+                                  "solver.leaving_grid: stop; use 'remove' to delete them "
+                                  "instead):{}",
+                                  step + 1, step_end, left, first ? first->message : ""));
         }
     }
     if (comm.distributed()) {

@@ -137,23 +137,56 @@ Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options, const Sn
       isa(talus::kernel_isa()), velocity_motion(velocity_motion_of(sc.solver)) {
     for (const GroupSpec &g : sc.groups)
         group_names.push_back(g.name);
+    // A snapshot of every particle (one rank's, or several ranks' read on
+    // another number of ranks) is spread over the ranks like generated
+    // particles; one of this rank's part of a run on as many ranks takes
+    // that rank's box back.
+    const bool whole = !restore || restore->boxes.empty();
     if (comm.distributed()) {
         // What several ranks do not do yet (docs/mpi.md, "Not yet").
-        if (restore)
-            throw Error("continuing from a checkpoint on several ranks is not supported yet; "
-                        "restart on one rank");
         if (stages.size() > 1)
             throw Error(fmt::format("{}: a scenario with stages does not run on several ranks "
                                     "yet; run it on one",
                                     sc.file));
-        distribute();
+        if (!whole) {
+            if (restore->boxes.size() != static_cast<std::size_t>(comm.size()) ||
+                restore->rank != comm.rank())
+                throw Error(fmt::format("internal error: rank {} of {} given the snapshot of "
+                                        "rank {} of {}",
+                                        comm.rank(), comm.size(), restore->rank,
+                                        restore->boxes.size()));
+            std::vector<CellBox> boxes;
+            for (const auto &b : restore->boxes)
+                boxes.push_back(CellBox{{b[0], b[1], b[2]}, {b[3], b[4], b[5]}});
+            decomp = Decomposition::from_boxes(sc.dim, domain_cells(sc), boxes);
+            take_box();
+        } else if (!restore) {
+            distribute();
+        }
+    } else if (!whole) {
+        throw Error(fmt::format("internal error: one rank given the snapshot of rank {} of {}",
+                                restore->rank, restore->boxes.size()));
     }
     if (sc.solver.cell_averaged_dilation) {
         dilation.div.assign(grid.n_cells, 0.0);
         dilation.vol.assign(grid.n_cells, 0.0);
     }
     if (restore) {
-        restore_from(*restore);
+        // A snapshot that does not fit (a damaged file) may be one rank's.
+        std::exception_ptr error;
+        try {
+            restore_from(*restore);
+        } catch (...) {
+            error = std::current_exception();
+        }
+        agree(error);
+        if (comm.distributed() && whole) {
+            distribute(); // this rank's box, boundary and a new particle order
+            // Each rank's plugins count their own cut steps; the whole
+            // count stays with rank 0.
+            if (comm.rank() != 0) materials.set_cut_steps(0);
+            order.sort(sets);
+        }
         return;
     }
     // The plugins see the initial state once (zero increment, so no stress
@@ -192,7 +225,7 @@ void Simulation::step(double max_dt) {
     Impl &g = *impl_;
     double dt = std::min(g.time_step(), max_dt);
     if (!(dt > 0.0))
-        throw Error(fmt::format("step {}: time step {} is not positive", g.step + 1, dt));
+        fail_together(g.comm, fmt::format("step {}: time step {} is not positive", g.step + 1, dt));
     const double t = g.time;
     g.step_end = t + dt;
     g.loads.evaluate(t, dt);
@@ -260,13 +293,15 @@ double Simulation::Impl::critical_dt() const {
 
 void Simulation::Impl::check_fixed_dt(double dt_crit) const {
     if (sc.solver.dt && *sc.solver.dt > dt_crit / sc.solver.cfl)
-        throw Error(sc.solver.dt_origin.error(fmt::format(
-            "{}: the fixed dt {:.4g} s is above the stability limit h / max(c + |v|) = {:.4g} s, "
-            "where the explicit step is unstable; lower solver.dt below cfl times that "
-            "({:.4g} s), or remove it to let cfl choose each step",
-            step == 0 ? std::string("at t = 0")
-                      : fmt::format("step {} (t = {:.6g} s)", step + 1, time),
-            *sc.solver.dt, dt_crit / sc.solver.cfl, dt_crit)));
+        fail_together(
+            comm, sc.solver.dt_origin.error(fmt::format(
+                      "{}: the fixed dt {:.4g} s is above the stability limit h / max(c + |v|) = "
+                      "{:.4g} s, "
+                      "where the explicit step is unstable; lower solver.dt below cfl times that "
+                      "({:.4g} s), or remove it to let cfl choose each step",
+                      step == 0 ? std::string("at t = 0")
+                                : fmt::format("step {} (t = {:.6g} s)", step + 1, time),
+                      *sc.solver.dt, dt_crit / sc.solver.cfl, dt_crit)));
 }
 
 double Simulation::time() const { return impl_->time; }
@@ -303,6 +338,8 @@ std::size_t Simulation::particle_count() const {
 
 RankTraffic Simulation::traffic() const { return impl_->traffic; }
 int Simulation::rank() const { return impl_->comm.rank(); }
+const Comm &Simulation::comm() const { return impl_->comm; }
+
 std::array<int, 6> Simulation::cell_box() const {
     const CellBox &b = impl_->decomp.box(impl_->comm.rank());
     return {b.lo[0], b.lo[1], b.lo[2], b.hi[0], b.hi[1], b.hi[2]};

@@ -48,6 +48,13 @@ Snapshot Simulation::snapshot() const {
     s.slabs_changed = g.order.slabs_changed();
     s.batch_size = g.opt.batch_size;
     s.sort_disorder = g.opt.sort_disorder;
+    if (g.comm.distributed()) {
+        s.rank = g.comm.rank();
+        for (int r = 0; r < g.decomp.ranks(); ++r) {
+            const CellBox &b = g.decomp.box(r);
+            s.boxes.push_back({b.lo[0], b.lo[1], b.lo[2], b.hi[0], b.hi[1], b.hi[2]});
+        }
+    }
     for (std::size_t si = 0; si < g.sets.size(); ++si) {
         // for_each_named_column walks a mutable set; nothing is changed.
         auto &set = const_cast<ParticleSet &>(g.sets[si]);
@@ -122,7 +129,10 @@ void Simulation::Impl::restore_from(const Snapshot &snap) {
     stage_start = snap.stage_start;
     gravity_before = snap.gravity_before;
     const StageSpec &st = stages[stage];
-    boundary = Boundary(sc, st.conditions, grid, stage_start);
+    // Every particle on several ranks: the boundary comes with this rank's
+    // box (distribute()).
+    if (!(comm.distributed() && snap.boxes.empty()))
+        boundary = Boundary(sc, st.conditions, grid, stage_start, comm);
     loads = Loads(sc, st.conditions, gravity_before, stage_start);
     domain = domain_of(sc, st.conditions);
     hold = snap.hold;

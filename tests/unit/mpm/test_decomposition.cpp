@@ -127,6 +127,41 @@ TEST(Decomposition, ACornerColumnIsSharedByWeightNotVolume) {
     EXPECT_EQ(c.weight(d.box(0)), c.weight(d.box(1)));
 }
 
+// A checkpoint stores the boxes only: the decomposition found again from
+// them owns every cell as the bisection did; boxes that do not tile the
+// grid (a damaged file) are refused.
+TEST(Decomposition, TheBoxesAloneGiveTheSameOwners) {
+    for (int ranks : {2, 3, 5, 8}) {
+        SCOPED_TRACE(ranks);
+        for (const Cloud &c : {corner({40, 12, 1}), uniform({10, 9, 8}), corner({16, 6, 9})}) {
+            const int dim = c.cells[2] > 1 ? 3 : 2;
+            const Decomposition d = Decomposition::bisect(dim, c.cells, ranks, c.histogram());
+            std::vector<CellBox> boxes;
+            for (int r = 0; r < ranks; ++r)
+                boxes.push_back(d.box(r));
+            const Decomposition e = Decomposition::from_boxes(dim, c.cells, boxes);
+            expect_tiling(e);
+            for (int k = 0; k < c.cells[2]; ++k)
+                for (int j = 0; j < c.cells[1]; ++j)
+                    for (int i = 0; i < c.cells[0]; ++i)
+                        ASSERT_EQ(e.owner({i, j, k}), d.owner({i, j, k}));
+            for (int r = 0; r < ranks; ++r)
+                EXPECT_EQ(e.neighbours(r, talus::kGhostLayers),
+                          d.neighbours(r, talus::kGhostLayers));
+        }
+    }
+    const Cloud c = uniform({8, 4, 1});
+    const CellBox left{{0, 0, 0}, {4, 4, 1}}, right{{4, 0, 0}, {8, 4, 1}};
+    EXPECT_NO_THROW(Decomposition::from_boxes(2, c.cells, {left, right}));
+    // A gap, an overlap, a box past the grid.
+    EXPECT_THROW(Decomposition::from_boxes(2, c.cells, {left, CellBox{{5, 0, 0}, {8, 4, 1}}}),
+                 talus::Error);
+    EXPECT_THROW(Decomposition::from_boxes(2, c.cells, {left, CellBox{{3, 0, 0}, {8, 4, 1}}}),
+                 talus::Error);
+    EXPECT_THROW(Decomposition::from_boxes(2, c.cells, {left, CellBox{{4, 0, 0}, {9, 4, 1}}}),
+                 talus::Error);
+}
+
 TEST(Decomposition, MoreRanksThanCellsIsRefused) {
     const Cloud c = uniform({2, 2, 1});
     EXPECT_THROW(Decomposition::bisect(2, c.cells, 5, c.histogram()), talus::Error);

@@ -70,4 +70,17 @@ void write_checkpoint(const std::filesystem::path &file, const Checkpoint &check
 // missing or wrong (not a checkpoint, a newer format, a damaged array).
 Checkpoint read_checkpoint(const std::filesystem::path &file);
 
+// A run on several ranks checkpoints into one file per rank: rank 0's is
+// `file` (checkpoint_<step>.h5, the one `--restart` names, written last,
+// so that it exists only when every rank's does), rank r's beside it as
+// checkpoint_<step>.rank<r>.h5.
+std::filesystem::path rank_checkpoint_file(const std::filesystem::path &file, int rank);
+
+// The checkpoint `file` (rank 0's) as rank `rank` of a run on `ranks`
+// continues it: written by as many ranks, that rank's own part; by another
+// number, every rank's particles together (Snapshot::boxes empty: the
+// solver spreads them anew). Throws talus::Error when a rank's file is
+// missing or from another step or run.
+Checkpoint read_checkpoint_for(const std::filesystem::path &file, int rank, int ranks);
+
 } // namespace talus

@@ -4,7 +4,10 @@
 // serial path calls none of them.
 #pragma once
 
+#include <talus/error.hpp>
+
 #include <cstddef>
+#include <exception>
 #include <memory>
 #include <optional>
 #include <string>
@@ -61,6 +64,11 @@ class Comm {
         std::string message;
     };
     std::optional<Failure> first_failure(const std::string *mine) const;
+    // Whether any rank failed (collective): each passes its error or null.
+    // On one rank, rethrows its own; on several, every rank throws
+    // AgreedError with the lowest failed rank's message when any failed,
+    // so that no rank goes on to a collective the others never reach.
+    void agree(std::exception_ptr error) const;
 
     void barrier() const;
 
@@ -70,6 +78,37 @@ class Comm {
     std::shared_ptr<const Handle> handle_;
     int rank_ = 0, size_ = 1;
 };
+
+// An error every rank of a run has thrown at the same point, with the same
+// message (Comm::agree): rank 0 reports it and all end together. Any other
+// error on several ranks is one rank's alone, and ends them all
+// (MpiSession::abort).
+class AgreedError : public Error {
+  public:
+    using Error::Error;
+};
+
+// An error every rank finds at the same point, from values that are the
+// same on all (a global dt, a global count): no message is needed to agree.
+[[noreturn]] inline void fail_together(const Comm &comm, const std::string &message) {
+    if (comm.distributed()) throw AgreedError(message);
+    throw Error(message);
+}
+
+// Runs `f` on every rank and agrees on its outcome (Comm::agree). `f` must
+// make no collective call unless it agrees on its own failures first.
+template <class F>
+void together(const Comm &comm, F &&f) {
+    std::exception_ptr error;
+    try {
+        f();
+    } catch (const AgreedError &) {
+        throw; // every rank has it already
+    } catch (...) {
+        error = std::current_exception();
+    }
+    comm.agree(error);
+}
 
 // MPI for the lifetime of a command that runs a simulation on several
 // ranks: initialised by the first instance (threads: the OpenMP loops run

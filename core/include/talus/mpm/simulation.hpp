@@ -99,7 +99,10 @@ class Simulation {
     // Continues from a snapshot of a simulation of the same scenario (its
     // batch size and sort threshold replace those in `options`): no
     // particle is generated and no plugin called. Throws when the
-    // snapshot's sets or columns do not fit the scenario.
+    // snapshot's sets or columns do not fit the scenario. On several
+    // ranks (collective): each rank's own part of a snapshot taken on as
+    // many ranks, or on every rank the same snapshot of every particle,
+    // which is split among the ranks as at the start (Snapshot::boxes).
     Simulation(const Scenario &scenario, SolverOptions options, const Snapshot &snapshot);
     ~Simulation();
     Simulation(const Simulation &) = delete;
@@ -165,7 +168,9 @@ class Simulation {
     static const char *phase_name(int k);
     // This rank's messages (zero on one rank).
     RankTraffic traffic() const;
-    // This rank and its box of cells, [lo, hi) per axis.
+    // The ranks the run is spread over, this rank and its box of cells,
+    // [lo, hi) per axis.
+    const Comm &comm() const;
     int rank() const;
     std::array<int, 6> cell_box() const;
     // Threads the solver's parallel loops use.

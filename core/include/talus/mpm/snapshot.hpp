@@ -46,6 +46,12 @@ struct Snapshot {
     int batch_size = 0;
     double sort_disorder = 0.0;
     std::vector<Set> sets;
+    // A run on several ranks (docs/mpi.md): the sets are this rank's
+    // particles, and `boxes` the cells each rank owns, [lo, hi) per axis
+    // as lo0 lo1 lo2 hi0 hi1 hi2. Empty on one rank, or when the sets hold
+    // every particle (a checkpoint read on another number of ranks).
+    int rank = 0;
+    std::vector<std::array<int, 6>> boxes;
 };
 
 } // namespace talus
