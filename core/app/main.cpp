@@ -128,6 +128,21 @@ bool is_yaml_name(const std::string &s) {
     return ends(".yaml") || ends(".yml");
 }
 
+// The exception being handled, as one message on stderr; the exit status.
+int report_current() {
+    try {
+        throw;
+    } catch (const talus::Error &e) {
+        std::cerr << e.what() << '\n';
+    } catch (const std::filesystem::filesystem_error &e) {
+        // Permissions, a missing folder, a full disk: the user's to fix.
+        std::cerr << fmt::format("talus: error: {}\n", e.what());
+    } catch (const std::exception &e) {
+        std::cerr << "talus: internal error: " << e.what() << '\n';
+    }
+    return 1;
+}
+
 } // namespace
 
 int main(int argc, char **argv) {
@@ -287,6 +302,11 @@ int main(int argc, char **argv) {
         return code == 0 ? 0 : 2;
     }
 
+    // `talus run` under a launcher: MPI for the command's lifetime, and the
+    // ranks the run is spread over (serial otherwise).
+    std::optional<talus::MpiSession> mpi;
+    talus::Comm comm = talus::Comm::serial();
+
     try {
         std::vector<std::filesystem::path> dirs(plugin_path.begin(), plugin_path.end());
         talus::PluginRegistry registry(dirs);
@@ -315,15 +335,11 @@ int main(int argc, char **argv) {
         };
 
         if (run->parsed()) {
-            // Started by mpirun on several ranks: each rank would run the
-            // whole scenario into the same files. The solver runs on
-            // several ranks (docs/mpi.md), the run's output does not yet.
-            if (const int ranks = talus::MpiSession::launched_ranks(); ranks > 1)
-                throw talus::Error(fmt::format(
-                    "talus run was started on {} ranks: `talus run` does not write its output "
-                    "from several ranks yet, and each rank would run the whole scenario into "
-                    "the same files; run it on one rank (docs/mpi.md)",
-                    ranks));
+            // Started by mpirun (or srun) on several ranks: the run is spread
+            // over them (docs/mpi.md). Every rank reads the input; rank 0
+            // writes what the ranks share and the log.
+            if (talus::MpiSession::launched_ranks() > 1) mpi.emplace(&argc, &argv);
+            comm = talus::Comm::world();
             if (scenario_file.empty() && restart_file.empty())
                 throw talus::Error("talus run: give a scenario (SCENARIO.yaml) or --restart "
                                    "CHECKPOINT.h5");
@@ -331,32 +347,38 @@ int main(int argc, char **argv) {
             // read it (the file may have changed since), under the file's
             // name, so that relative paths resolve as they did.
             std::optional<talus::Checkpoint> checkpoint;
+            std::optional<talus::Scenario> read;
             std::string text;
-            if (!restart_file.empty()) {
-                checkpoint = talus::read_checkpoint(restart_file);
-                scenario_file = checkpoint->scenario_path;
-                text = checkpoint->scenario_text;
-                if (output_dir.empty())
-                    output_dir = std::filesystem::absolute(restart_file)
-                                     .parent_path()
-                                     .parent_path()
-                                     .string();
-            } else {
-                wrong_file(scenario_file, YamlKind::scenario, "run");
-                text = talus::yaml::read_text_file(scenario_file);
-            }
-            // One text is parsed and stored in the checkpoints.
-            const talus::yaml::Node root = talus::yaml::load_string(text, scenario_file);
-            talus::Scenario sc = talus::read_scenario(root, registry);
+            talus::together(comm, [&] {
+                if (!restart_file.empty()) {
+                    checkpoint = talus::read_checkpoint_for(restart_file, comm.rank(), comm.size());
+                    scenario_file = checkpoint->scenario_path;
+                    text = checkpoint->scenario_text;
+                    if (output_dir.empty())
+                        output_dir = std::filesystem::absolute(restart_file)
+                                         .parent_path()
+                                         .parent_path()
+                                         .string();
+                } else {
+                    wrong_file(scenario_file, YamlKind::scenario, "run");
+                    text = talus::yaml::read_text_file(scenario_file);
+                }
+                // One text is parsed and stored in the checkpoints.
+                const talus::yaml::Node root = talus::yaml::load_string(text, scenario_file);
+                read.emplace(talus::read_scenario(root, registry));
+            });
+            talus::Scenario &sc = *read;
+            const bool rank0 = comm.rank() == 0;
             talus::RunOptions ro;
+            ro.solver.comm = comm;
             ro.scenario_text = text;
             ro.restart = checkpoint ? &*checkpoint : nullptr;
             ro.force_restart = force_restart;
             ro.output_dir = output_dir;
             ro.force = force;
             ro.allow_large = allow_large;
-            ro.progress = true;
-            ro.progress_tty = isatty(2) != 0;
+            ro.progress = rank0;
+            ro.progress_tty = rank0 && isatty(2) != 0;
             ro.progress_interval = progress_every;
             ro.solver.threads = threads;
             if (!run_plot.empty()) {
@@ -369,7 +391,9 @@ int main(int argc, char **argv) {
                                                    run_plot, folder.string()));
                 ro.final_field = run_plot_field;
             }
-            const talus::RunSummary rs = talus::run_scenario(sc, ro, std::cerr);
+            std::ostream silent(nullptr); // the other ranks' log: rank 0 tells it
+            const talus::RunSummary rs = talus::run_scenario(sc, ro, rank0 ? std::cerr : silent);
+            if (!rank0) return 0;
             std::cerr << fmt::format(
                 "talus: {} steps to t = {:.6g} s, {} particles, {:.1f} s wall, {:.3g} "
                 "particle-steps/s; {} output(s){} in {}\n",
@@ -569,18 +593,19 @@ int main(int argc, char **argv) {
             return rep.passed() ? 0 : 1;
         }
     } catch (const talus::Interrupted &e) {
-        std::cerr << e.what() << '\n';
+        // On several ranks, every rank stops together: rank 0 tells.
+        if (comm.rank() == 0) std::cerr << e.what() << '\n';
         return 128 + e.signal();
-    } catch (const talus::Error &e) {
-        std::cerr << e.what() << '\n';
-        return 1;
-    } catch (const std::filesystem::filesystem_error &e) {
-        // Permissions, a missing folder, a full disk: the user's to fix.
-        std::cerr << fmt::format("talus: error: {}\n", e.what());
+    } catch (const talus::AgreedError &e) {
+        if (comm.rank() == 0) std::cerr << e.what() << '\n';
         return 1;
     } catch (const std::exception &e) {
-        std::cerr << "talus: internal error: " << e.what() << '\n';
-        return 1;
+        if (!comm.distributed()) return report_current();
+        // One rank's failure alone: the others may wait for it in an
+        // exchange, so all end now.
+        std::cerr << fmt::format("talus: rank {} of {}: ", comm.rank(), comm.size());
+        report_current();
+        talus::MpiSession::abort(1);
     }
     return 0;
 }

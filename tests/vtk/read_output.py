@@ -1,6 +1,6 @@
 """Reads a `talus run` output folder with VTK's own XML readers (the ones
 ParaView uses) and checks what it finds against the run's diagnostics.csv:
-the .pvd lists every frame, each .vtu opens, has one vertex per particle and
+the .pvd lists every frame, each .vtu (or .pvtu and its pieces) opens, has one vertex per particle and
 the documented fields, and the particles' total mass (rho0 V0 from volume / J)
 matches the diagnostics. Exit status 0 when all holds."""
 import csv
@@ -33,7 +33,9 @@ def main(folder, density, groups, materials):
     for frame, row in zip(frames, rows):
         if abs(float(frame.get("timestep")) - float(row["time"])) > 1e-12:
             fail(f"frame time {frame.get('timestep')} != {row['time']}")
-        reader = vtk.vtkXMLUnstructuredGridReader()
+        # A run on several ranks writes a .pvtu naming a piece per rank.
+        parallel = frame.get("file").endswith(".pvtu")
+        reader = vtk.vtkXMLPUnstructuredGridReader() if parallel else vtk.vtkXMLUnstructuredGridReader()
         reader.SetFileName(f"{folder}/{frame.get('file')}")
         reader.Update()
         grid = reader.GetOutput()

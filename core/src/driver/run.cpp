@@ -20,6 +20,8 @@
 #include <fstream>
 #include <iterator>
 #include <limits>
+#include <map>
+#include <optional>
 #include <ostream>
 #include <unistd.h>
 
@@ -71,9 +73,11 @@ ResourceEstimate check_memory(const Scenario &sc, double &total, double &availab
 
 namespace {
 
-// The particle nearest each probe point at t = 0 (-1 for other probes). A
+// The particle nearest each probe point at t = 0 (-1 for other probes; on
+// a tie the lowest id, so that any number of ranks picks the same). A
 // point farther than a cell from every particle is a mistake in the point.
 std::vector<std::int64_t> probe_particles(const Scenario &sc, const Simulation &sim) {
+    const Comm &comm = sim.comm();
     std::vector<std::int64_t> ids;
     for (const Probe &p : sc.output.probes) {
         std::int64_t id = -1;
@@ -86,16 +90,27 @@ std::vector<std::int64_t> probe_particles(const Scenario &sc, const Simulation &
                         d2 += std::pow(s.x[static_cast<std::size_t>(d)][k] -
                                            p.point[static_cast<std::size_t>(d)],
                                        2);
-                    if (d2 < best) {
+                    if (d2 < best || (d2 == best && s.id[k] < id)) {
                         best = d2;
                         id = s.id[k];
                     }
                 }
-            if (std::sqrt(best) > sc.cell)
-                throw Error(p.origin.error(fmt::format(
-                    "probe '{}': no particle within a cell ({:g} m) of its point; the nearest "
-                    "is {:.4g} m away (a probe follows the particle nearest its point at t = 0)",
-                    p.name, sc.cell, std::sqrt(best))));
+            if (comm.distributed()) {
+                // Ids are below 2^53: exact as doubles.
+                const double nearest = -comm.max(-best);
+                id = static_cast<std::int64_t>(-comm.max(
+                    best == nearest && id >= 0 ? -static_cast<double>(id)
+                                               : -std::numeric_limits<double>::infinity()));
+                best = nearest;
+            }
+            if (std::sqrt(best) > sc.cell) // the global nearest: the same on every rank
+                fail_together(
+                    comm,
+                    p.origin.error(fmt::format(
+                        "probe '{}': no particle within a cell ({:g} m) of its point; the nearest "
+                        "is {:.4g} m away (a probe follows the particle nearest its point at t = "
+                        "0)",
+                        p.name, sc.cell, std::sqrt(best))));
         }
         ids.push_back(id);
     }
@@ -127,6 +142,20 @@ void slender_group_notes(const Scenario &sc, const Simulation &sim,
                 hi[g][dd] = std::max(hi[g][dd], s.x0[dd][p]);
             }
         }
+    if (const Comm &comm = sim.comm(); comm.distributed()) {
+        std::vector<double> ext; // -lo and hi: one max over the ranks
+        for (std::size_t g = 0; g < G; ++g)
+            for (std::size_t d = 0; d < 3; ++d) {
+                ext.push_back(-lo[g][d]);
+                ext.push_back(hi[g][d]);
+            }
+        comm.max(ext.data(), ext.size());
+        for (std::size_t g = 0; g < G; ++g)
+            for (std::size_t d = 0; d < 3; ++d) {
+                lo[g][d] = -ext[6 * g + 2 * d];
+                hi[g][d] = ext[6 * g + 2 * d + 1];
+            }
+    }
     for (std::size_t g = 0; g < G; ++g) {
         const GroupSpec &gs = sc.groups[g];
         if (gs.particles_per_cell > 2 || lo[g][0] > hi[g][0]) continue;
@@ -153,7 +182,8 @@ void slender_group_notes(const Scenario &sc, const Simulation &sim,
 Prepared prepare_run(Scenario &sc, const SolverOptions &solver) {
     Prepared out;
     RunPlan &plan = out.plan;
-    plan.estimate = check_memory(sc, plan.memory_total, plan.memory_available);
+    together(solver.comm,
+             [&] { plan.estimate = check_memory(sc, plan.memory_total, plan.memory_available); });
     if (plan.memory_available > 0.0 && plan.estimate.bytes > plan.memory_available)
         plan.notes.push_back(fmt::format(
             "talus: note: the run needs about {} of memory, more than is available now ({} of {})",
@@ -201,16 +231,20 @@ Prepared prepare_run(Scenario &sc, const SolverOptions &solver) {
     // finer than time.end / 2^53 cannot be counted (doubles stop holding
     // every integer there).
     if (sc.output.every > 0.0 && !(sc.end_time / sc.output.every < kMaxCadenceCount))
-        throw Error(sc.output.every_origin.error(fmt::format(
-            "output.every = {:g} s is too fine to count up to t = {:g} s (more than 2^53 "
-            "output times); outputs come at most once per step, so a cadence below the time "
-            "step ({:.3g} s) gives the same files as the step itself",
-            sc.output.every, sc.end_time, plan.first_dt)));
+        fail_together(
+            solver.comm,
+            sc.output.every_origin.error(fmt::format(
+                "output.every = {:g} s is too fine to count up to t = {:g} s (more than 2^53 "
+                "output times); outputs come at most once per step, so a cadence below the time "
+                "step ({:.3g} s) gives the same files as the step itself",
+                sc.output.every, sc.end_time, plan.first_dt)));
     if (sc.checkpoint.every && !(sc.end_time / *sc.checkpoint.every < kMaxCadenceCount))
-        throw Error(sc.checkpoint.every_origin.error(fmt::format(
-            "checkpoint.every = {:g} s is too fine to count up to t = {:g} s (more than 2^53 "
-            "checkpoint times); checkpoint.steps: 1 writes one after every step",
-            *sc.checkpoint.every, sc.end_time)));
+        fail_together(
+            solver.comm,
+            sc.checkpoint.every_origin.error(fmt::format(
+                "checkpoint.every = {:g} s is too fine to count up to t = {:g} s (more than 2^53 "
+                "checkpoint times); checkpoint.steps: 1 writes one after every step",
+                *sc.checkpoint.every, sc.end_time)));
     if (plan.output_files > kMaxOutputFiles)
         plan.over_limits.push_back(sc.output.every_origin.warning(fmt::format(
             "the cadence asks for about {:.3g} VTK files, more than {:.0e}; raise output.every",
@@ -240,13 +274,32 @@ long next_multiple(double t, double every, long from) {
     return static_cast<long>(k);
 }
 
+// What a run writes into its folder: files, and on several ranks the
+// folders of each output's pieces (particles_<k>/, failure_step<n>/).
 bool is_own_file(const fs::path &p) {
     const std::string name = p.filename().string();
     for (const char *f : {"diagnostics.csv", "probes.csv", "particles.pvd", "failed_call.yaml",
                           "final_particles.csv", "provenance.json", "stages.csv"})
         if (name == f) return true;
-    return (name.rfind("particles_", 0) == 0 || name.rfind("failure_", 0) == 0) &&
-           p.extension() == ".vtu";
+    if (name.rfind("particles_", 0) != 0 && name.rfind("failure_", 0) != 0) return false;
+    std::error_code ec;
+    return p.extension() == ".vtu" || p.extension() == ".pvtu" ||
+           (p.extension().empty() && fs::is_directory(p, ec));
+}
+
+// Removes a file, or a folder of pieces, of a previous run.
+void remove_own(const fs::path &p, const char *why) {
+    std::error_code ec;
+    if (fs::remove_all(p, ec) == static_cast<std::uintmax_t>(-1) || ec)
+        throw Error(fmt::format("{}: cannot remove {}: {}", p.string(), why, ec.message()));
+}
+
+// A folder every rank may create at once.
+void make_folder(const fs::path &dir) {
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (ec && !fs::is_directory(dir))
+        throw Error(fmt::format("{}: cannot create the folder: {}", dir.string(), ec.message()));
 }
 
 std::string fmt_time(double s) {
@@ -257,14 +310,18 @@ std::string fmt_time(double s) {
 
 // Everything a run writes, every write checked (output_file.hpp). The VTK
 // file of an output time is complete before its CSV rows are written, so
-// no row stands for a file that is not there.
+// no row stands for a file that is not there. On several ranks each writes
+// its piece of every VTK output; rank 0 writes the rest, and every write is
+// agreed on (together()), so that a failure on any rank stops all of them
+// at the same point.
 class RunOutput {
   public:
     // With `resume`, continues the output of an interrupted run as it
-    // stood at its checkpoint.
+    // stood at its checkpoint. Collective.
     RunOutput(const fs::path &dir, const Scenario &sc, const Simulation &sim,
               std::vector<std::int64_t> probe_ids, const OutputProgress *resume = nullptr)
-        : dir_(dir), sc_(sc), sim_(sim), probe_ids_(std::move(probe_ids)) {
+        : dir_(dir), sc_(sc), sim_(sim), comm_(sim.comm()), root_(comm_.rank() == 0),
+          probe_ids_(std::move(probe_ids)) {
         // State variables to write: those named in output.state, else every
         // one its plugin flags for output.
         fields_ = sc.output.state_fields;
@@ -274,57 +331,24 @@ class RunOutput {
                     if (v.output() &&
                         std::find(fields_.begin(), fields_.end(), v.name) == fields_.end())
                         fields_.push_back(v.name);
-        if (resume) {
-            resume_from(*resume);
-            return;
-        }
-        // First: what made this run, before any result exists.
-        Provenance prov{"run", sc.file, {}};
-        for (const auto &m : sc.materials)
-            prov.materials.push_back({m.name, &m.spec});
-        write_file_atomically(dir / "provenance.json", provenance_json(prov));
-        diag_ = OutputFile(dir / "diagnostics.csv");
-        diag_ << "step,time,dt,mass,momentum_x,momentum_y,momentum_z,kinetic_energy,stress_work,"
-                 "angular_momentum_x,angular_momentum_y,angular_momentum_z,particles,removed,"
-                 "cut_steps,held_at_faces,stage\n";
-        diag_.flush();
-        if (!sc.stages.empty()) {
-            stages_ = OutputFile(dir / "stages.csv");
-            stages_ << "stage,name,first_step,start_time,last_step,end_time,end,"
-                       "kinetic_energy_ratio,last_output\n";
-            stages_.flush();
-        }
-        if (!sc.output.probes.empty()) {
-            prob_ = OutputFile(dir / "probes.csv");
-            std::string h = "time";
-            const char *axes = "xyz";
-            for (const Probe &p : sc.output.probes) {
-                const std::string &nm = p.name;
-                const bool particle = p.kind == Probe::Kind::particle;
-                for (int d = 0; d < sc.dim; ++d)
-                    h += fmt::format(",{}.{}", nm, axes[d]);
-                if (particle)
-                    for (int d = 0; d < sc.dim; ++d)
-                        h += fmt::format(",{}.u{}", nm, axes[d]);
-                for (int d = 0; d < sc.dim; ++d)
-                    h += fmt::format(",{}.v{}", nm, axes[d]);
-                if (particle)
-                    for (const char *c : {"xx", "yy", "zz", "xy", "yz", "xz"})
-                        h += fmt::format(",{}.sig_{}", nm, c);
-            }
-            prob_ << h << "\n";
-            prob_.flush();
-        }
+        together(comm_, [&] {
+            if (resume)
+                resume_from(*resume);
+            else if (root_)
+                start();
+        });
     }
 
     int outputs() const { return outputs_; }
 
     // Where the output stands, every row handed to the OS (for a
-    // checkpoint).
+    // checkpoint). Rank 0's files only: the others' byte counts are 0.
     OutputProgress progress() {
         OutputProgress o;
-        diag_.flush();
-        o.diagnostics_bytes = diag_.bytes();
+        if (diag_.is_open()) {
+            diag_.flush();
+            o.diagnostics_bytes = diag_.bytes();
+        }
         if (prob_.is_open()) {
             prob_.flush();
             o.probes_bytes = prob_.bytes();
@@ -354,41 +378,58 @@ class RunOutput {
     // The end of a stage, after its last output: a row of stages.csv
     // (scenarios with stages only).
     void stage_row(StageEnd why, bool met) {
-        if (!stages_.is_open()) return;
-        const StageSpec &st = sim_.stages()[sim_.stage()];
-        const char *end = why == StageEnd::quiescent ? "quiescent"
-                          : st.until && !met         ? "duration_not_quiescent"
-                                                     : "duration";
-        stages_ << fmt::format("{},{},{},{:.17g},{},{:.17g},{},{:.17g},{}\n", sim_.stage(), st.name,
-                               stage_first_step_, sim_.stage_start(), sim_.steps(), sim_.time(),
-                               end, sim_.last_kinetic_energy_ratio(), outputs_ - 1);
-        stages_.flush();
+        together(comm_, [&] {
+            if (!stages_.is_open()) return;
+            const StageSpec &st = sim_.stages()[sim_.stage()];
+            const char *end = why == StageEnd::quiescent ? "quiescent"
+                              : st.until && !met         ? "duration_not_quiescent"
+                                                         : "duration";
+            stages_ << fmt::format("{},{},{},{:.17g},{},{:.17g},{},{:.17g},{}\n", sim_.stage(),
+                                   st.name, stage_first_step_, sim_.stage_start(), sim_.steps(),
+                                   sim_.time(), end, sim_.last_kinetic_energy_ratio(),
+                                   outputs_ - 1);
+            stages_.flush();
+        });
         stage_first_step_ = sim_.steps() + 1;
     }
 
-    // An output time: the VTK file and the collection, then the rows.
+    // An output time: the VTK file and the collection, then the rows
+    // (collective).
     void write() {
         if (sc_.output.vtk) {
-            const std::string name = fmt::format("particles_{:05d}.vtu", outputs_);
-            write_vtu(dir_ / name, sim_, fields_);
+            const std::string name = particles(fmt::format("particles_{:05d}", outputs_));
             pvd_.emplace_back(sim_.time(), name);
             // Rewritten after every frame so that a run stopped early still
             // leaves a valid collection.
-            write_pvd(dir_ / "particles.pvd", pvd_);
+            together(comm_, [&] {
+                if (root_) write_pvd(dir_ / "particles.pvd", pvd_);
+            });
         }
         rows();
         ++outputs_;
         last_written_step_ = sim_.steps();
     }
 
-    // The state when a step failed: failure_step<N>.vtu and a last row of
-    // each CSV. Returns where it went (or why it could not be written) for
-    // the error message.
-    std::string write_failure() noexcept {
+    // The state when a step failed: failure_step<N>.vtu (.pvtu and its
+    // pieces on several ranks) and a last row of each CSV. Returns where
+    // it went (or why it could not be written) for the error message.
+    // `all_ranks`: every rank is here (an agreed failure); otherwise this
+    // rank writes its piece alone (a crash).
+    std::string write_failure(bool all_ranks = true) noexcept {
         try {
-            const fs::path file = dir_ / fmt::format("failure_step{}.vtu", sim_.steps() + 1);
-            write_vtu(file, sim_, fields_);
-            rows();
+            const std::string stem = fmt::format("failure_step{}", sim_.steps() + 1);
+            fs::path file;
+            if (all_ranks || !comm_.distributed()) {
+                file = dir_ / particles(stem);
+                rows();
+            } else {
+                file = dir_ / stem / piece(comm_.rank());
+                make_folder(file.parent_path());
+                write_vtu(file, sim_, fields_);
+                return fmt::format("\nthe state of rank {} when it stopped is in {} (particles "
+                                   "may be part way through step {})",
+                                   comm_.rank(), file.string(), sim_.steps() + 1);
+            }
             return fmt::format(
                 "\nthe state when the run stopped is in {} and the last row of diagnostics.csv "
                 "(particles may be part way through step {})",
@@ -400,93 +441,188 @@ class RunOutput {
     }
 
   private:
+    // The piece of rank r, in the folder of its output time.
+    static std::string piece(int r) { return fmt::format("rank_{:04d}.vtu", r); }
+
+    // The particles now as `stem`.vtu; on several ranks as a piece per rank
+    // in the folder `stem` and `stem`.pvtu naming them (collective).
+    // Returns the file name, relative to the run's folder.
+    std::string particles(const std::string &stem) {
+        if (!comm_.distributed()) {
+            write_vtu(dir_ / (stem + ".vtu"), sim_, fields_);
+            return stem + ".vtu";
+        }
+        together(comm_, [&] {
+            make_folder(dir_ / stem);
+            write_vtu(dir_ / stem / piece(comm_.rank()), sim_, fields_);
+        });
+        together(comm_, [&] {
+            if (!root_) return;
+            std::vector<std::string> pieces;
+            for (int r = 0; r < comm_.size(); ++r)
+                pieces.push_back(stem + "/" + piece(r));
+            write_pvtu(dir_ / (stem + ".pvtu"), sim_, fields_, pieces);
+        });
+        return stem + ".pvtu";
+    }
+
+    // A new run's files (rank 0): first what made this run, before any
+    // result exists, then the CSV headers.
+    void start() {
+        Provenance prov{"run", sc_.file, {}};
+        for (const auto &m : sc_.materials)
+            prov.materials.push_back({m.name, &m.spec});
+        write_file_atomically(dir_ / "provenance.json", provenance_json(prov));
+        diag_ = OutputFile(dir_ / "diagnostics.csv");
+        diag_ << "step,time,dt,mass,momentum_x,momentum_y,momentum_z,kinetic_energy,stress_work,"
+                 "angular_momentum_x,angular_momentum_y,angular_momentum_z,particles,removed,"
+                 "cut_steps,held_at_faces,stage\n";
+        diag_.flush();
+        if (!sc_.stages.empty()) {
+            stages_ = OutputFile(dir_ / "stages.csv");
+            stages_ << "stage,name,first_step,start_time,last_step,end_time,end,"
+                       "kinetic_energy_ratio,last_output\n";
+            stages_.flush();
+        }
+        if (!sc_.output.probes.empty()) {
+            prob_ = OutputFile(dir_ / "probes.csv");
+            std::string h = "time";
+            const char *axes = "xyz";
+            for (const Probe &p : sc_.output.probes) {
+                const std::string &nm = p.name;
+                const bool particle = p.kind == Probe::Kind::particle;
+                for (int d = 0; d < sc_.dim; ++d)
+                    h += fmt::format(",{}.{}", nm, axes[d]);
+                if (particle)
+                    for (int d = 0; d < sc_.dim; ++d)
+                        h += fmt::format(",{}.u{}", nm, axes[d]);
+                for (int d = 0; d < sc_.dim; ++d)
+                    h += fmt::format(",{}.v{}", nm, axes[d]);
+                if (particle)
+                    for (const char *c : {"xx", "yy", "zz", "xy", "yz", "xz"})
+                        h += fmt::format(",{}.sig_{}", nm, c);
+            }
+            prob_ << h << "\n";
+            prob_.flush();
+        }
+    }
+
     // The files as they stood at the checkpoint: the CSV files cut back to
     // its length, the VTK files written after it removed, the collection
-    // rewritten.
+    // rewritten (rank 0; the others only take up the count).
     void resume_from(const OutputProgress &o) {
+        outputs_ = static_cast<int>(o.next_output);
+        last_written_step_ = o.last_written_step;
+        stage_first_step_ = o.stage_first_step;
+        // The frames so far as they were written: .pvtu by several ranks,
+        // .vtu by one (the checkpoint may be of another number of ranks).
+        for (std::size_t k = 0; k < o.frames.size(); ++k) {
+            const std::string stem = fmt::format("particles_{:05d}", k);
+            std::error_code ec;
+            pvd_.emplace_back(o.frames[k], fs::exists(dir_ / (stem + ".pvtu"), ec) ? stem + ".pvtu"
+                                                                                   : stem + ".vtu");
+        }
+        if (!root_) return;
         diag_ = OutputFile::resume(dir_ / "diagnostics.csv", o.diagnostics_bytes);
         if (!sc_.output.probes.empty())
             prob_ = OutputFile::resume(dir_ / "probes.csv", o.probes_bytes);
         if (!sc_.stages.empty()) stages_ = OutputFile::resume(dir_ / "stages.csv", o.stages_bytes);
-        outputs_ = static_cast<int>(o.next_output);
-        last_written_step_ = o.last_written_step;
-        stage_first_step_ = o.stage_first_step;
-        for (std::size_t k = 0; k < o.frames.size(); ++k)
-            pvd_.emplace_back(o.frames[k], fmt::format("particles_{:05d}.vtu", k));
         std::error_code ec;
+        std::vector<fs::path> after;
         for (const auto &e : fs::directory_iterator(dir_, ec)) {
             const std::string name = e.path().filename().string();
             int k = -1;
-            const bool later = std::sscanf(name.c_str(), "particles_%d.vtu", &k) == 1 &&
-                               k >= outputs_ && e.path().extension() == ".vtu";
+            char tail[8] = {};
+            const bool later = std::sscanf(name.c_str(), "particles_%d%7s", &k, tail) >= 1 &&
+                               k >= outputs_ && is_own_file(e.path());
             const bool stale = name.rfind("failure_", 0) == 0 || name == "final_particles.csv" ||
                                name == "failed_call.yaml";
-            if ((later || stale) && !fs::remove(e.path(), ec) && ec)
-                throw Error(fmt::format("{}: cannot remove a file written after the checkpoint: {}",
-                                        e.path().string(), ec.message()));
+            if (later || stale) after.push_back(e.path());
         }
+        if (ec)
+            throw Error(fmt::format("{}: cannot list the folder: {}", dir_.string(), ec.message()));
+        for (const fs::path &p : after)
+            remove_own(p, "a file written after the checkpoint");
         if (sc_.output.vtk) write_pvd(dir_ / "particles.pvd", pvd_);
     }
 
+    // A row of diagnostics.csv and of probes.csv (collective: the sums are
+    // over the ranks; rank 0 writes).
     void rows() {
         const Diagnostics dg = sim_.diagnostics();
-        diag_ << fmt::format("{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},"
-                             "{:.17g},{:.17g},{:.17g},{},{},{},{},{}\n",
-                             dg.step, dg.time, dg.dt, dg.mass, dg.momentum[0], dg.momentum[1],
-                             dg.momentum[2], dg.kinetic_energy, dg.stress_work,
-                             dg.angular_momentum[0], dg.angular_momentum[1], dg.angular_momentum[2],
-                             dg.particles, dg.removed, dg.cut_steps, dg.held_at_faces,
-                             sim_.stage());
-        diag_.flush();
-        if (!prob_.is_open()) return;
-        std::string row = fmt::format("{:.17g}", sim_.time());
+        // Each probe's values: a particle probe's from the rank that holds
+        // the particle (the others add zeros), a group probe's sums from
+        // every rank; then one sum over the ranks.
         const int D = sc_.dim;
-        for (std::size_t i = 0; i < sc_.output.probes.size(); ++i) {
+        const std::size_t Dz = static_cast<std::size_t>(D);
+        const std::size_t P = sc_.output.probes.size();
+        std::vector<double> val, found(P, 0.0);
+        std::vector<std::size_t> at(P);
+        for (std::size_t i = 0; i < P; ++i) {
             const Probe &probe = sc_.output.probes[i];
-            if (probe.kind == Probe::Kind::particle) {
-                bool found = false;
-                for (const auto &s : sim_.sets())
-                    for (std::size_t k = 0; k < s.n && !found; ++k)
-                        if (s.id[k] == probe_ids_[i]) {
-                            found = true;
-                            for (int d = 0; d < D; ++d)
-                                row += fmt::format(",{:.17g}", s.x[static_cast<std::size_t>(d)][k]);
-                            for (int d = 0; d < D; ++d)
-                                row += fmt::format(",{:.17g}",
-                                                   s.x[static_cast<std::size_t>(d)][k] -
-                                                       s.x0[static_cast<std::size_t>(d)][k]);
-                            for (int d = 0; d < D; ++d)
-                                row += fmt::format(",{:.17g}", s.v[static_cast<std::size_t>(d)][k]);
-                            for (std::size_t c = 0; c < 6; ++c)
-                                row += fmt::format(",{:.17g}", s.stress[6 * k + c]);
+            at[i] = val.size();
+            const bool particle = probe.kind == Probe::Kind::particle;
+            val.resize(val.size() + (particle ? 3 * Dz + 6 : 1 + 2 * Dz), 0.0);
+            double *v = &val[at[i]];
+            for (const auto &s : sim_.sets())
+                for (std::size_t k = 0; k < s.n; ++k) {
+                    if (particle && s.id[k] == probe_ids_[i]) {
+                        found[i] = 1.0;
+                        for (std::size_t d = 0; d < Dz; ++d) {
+                            v[d] = s.x[d][k];
+                            v[Dz + d] = s.x[d][k] - s.x0[d][k];
+                            v[2 * Dz + d] = s.v[d][k];
                         }
-                if (!found) // removed (it left the grid, or its group was removed)
-                    for (int c = 0; c < 3 * D + 6; ++c)
-                        row += ",nan";
-            } else {
-                double m = 0.0, x[3] = {0, 0, 0}, v[3] = {0, 0, 0};
-                for (const auto &s : sim_.sets())
-                    for (std::size_t k = 0; k < s.n; ++k)
-                        if (static_cast<std::size_t>(s.group[k]) == probe.group) {
-                            m += s.mass[k];
-                            for (int d = 0; d < D; ++d) {
-                                x[d] += s.mass[k] * s.x[static_cast<std::size_t>(d)][k];
-                                v[d] += s.mass[k] * s.v[static_cast<std::size_t>(d)][k];
-                            }
+                        for (std::size_t c = 0; c < 6; ++c)
+                            v[3 * Dz + c] = s.stress[6 * k + c];
+                    } else if (!particle && static_cast<std::size_t>(s.group[k]) == probe.group) {
+                        v[0] += s.mass[k];
+                        for (std::size_t d = 0; d < Dz; ++d) {
+                            v[1 + d] += s.mass[k] * s.x[d][k];
+                            v[1 + Dz + d] += s.mass[k] * s.v[d][k];
                         }
-                for (int d = 0; d < D; ++d)
-                    row += fmt::format(",{:.17g}", m > 0 ? x[d] / m : NAN);
-                for (int d = 0; d < D; ++d)
-                    row += fmt::format(",{:.17g}", m > 0 ? v[d] / m : NAN);
-            }
+                    }
+                }
         }
-        prob_ << row << "\n";
-        prob_.flush();
+        if (comm_.distributed() && P > 0) {
+            comm_.sum(val.data(), val.size());
+            comm_.sum(found.data(), found.size());
+        }
+        together(comm_, [&] {
+            if (!root_) return;
+            diag_ << fmt::format(
+                "{},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},{:.17g},"
+                "{:.17g},{:.17g},{:.17g},{},{},{},{},{}\n",
+                dg.step, dg.time, dg.dt, dg.mass, dg.momentum[0], dg.momentum[1], dg.momentum[2],
+                dg.kinetic_energy, dg.stress_work, dg.angular_momentum[0], dg.angular_momentum[1],
+                dg.angular_momentum[2], dg.particles, dg.removed, dg.cut_steps, dg.held_at_faces,
+                sim_.stage());
+            diag_.flush();
+            if (!prob_.is_open()) return;
+            std::string row = fmt::format("{:.17g}", sim_.time());
+            for (std::size_t i = 0; i < P; ++i) {
+                const double *v = &val[at[i]];
+                if (sc_.output.probes[i].kind == Probe::Kind::particle) {
+                    // NaN once removed (it left the grid, or its group was
+                    // removed).
+                    for (int c = 0; c < 3 * D + 6; ++c)
+                        row += found[i] > 0.0 ? fmt::format(",{:.17g}", v[c]) : ",nan";
+                } else {
+                    const double m = v[0];
+                    for (int c = 1; c < 1 + 2 * D; ++c)
+                        row += fmt::format(",{:.17g}", m > 0 ? v[c] / m : NAN);
+                }
+            }
+            prob_ << row << "\n";
+            prob_.flush();
+        });
     }
 
     fs::path dir_;
     const Scenario &sc_;
     const Simulation &sim_;
+    const Comm &comm_;
+    bool root_ = true; // rank 0 writes all but the pieces
     std::vector<std::int64_t> probe_ids_;
     std::vector<std::string> fields_;
     OutputFile diag_, prob_, stages_;
@@ -515,7 +651,7 @@ std::string write_replay_case(const Simulation &sim, const fs::path &dir) noexce
 // crash, best effort (the heap may be what the plugin broke).
 void write_state_after_crash(void *context) {
     auto *out = static_cast<RunOutput *>(context);
-    const std::string where = out->write_failure();
+    const std::string where = out->write_failure(/*all_ranks=*/false);
     ::write(STDERR_FILENO, where.data() + 1, where.size() - 1);
     ::write(STDERR_FILENO, " (best effort after a crash)\n", 29);
 }
@@ -577,9 +713,7 @@ void write_final_particles(const fs::path &file, const Simulation &sim, const st
                       : field == "J"          ? Kind::J
                                               : Kind::state;
     const int D = sim.scenario().dim;
-    std::string text = D == 3 ? "id,group,x,y,z," : "id,group,x,y,";
-    text += field;
-    text += '\n';
+    std::string text; // this rank's rows
     auto out = std::back_inserter(text);
     for (const ParticleSet &s : sim.sets())
         for (std::size_t p = 0; p < s.n; ++p) {
@@ -610,7 +744,21 @@ void write_final_particles(const fs::path &file, const Simulation &sim, const st
                 fmt::format_to(out, ",{:.9g}", s.x[d][p]);
             fmt::format_to(out, ",{:.9g}\n", value);
         }
-    write_file_atomically(file, text);
+    // Rank 0 writes every rank's rows, in rank order.
+    const Comm &comm = sim.comm();
+    std::string all = D == 3 ? "id,group,x,y,z," : "id,group,x,y,";
+    all += field;
+    all += '\n';
+    if (comm.distributed()) {
+        const auto *p = reinterpret_cast<const std::byte *>(text.data());
+        for (const auto &r : comm.gather(std::vector<std::byte>(p, p + text.size())))
+            all.append(reinterpret_cast<const char *>(r.data()), r.size());
+    } else {
+        all += text;
+    }
+    together(comm, [&] {
+        if (comm.rank() == 0) write_file_atomically(file, all);
+    });
 }
 
 } // namespace
@@ -665,48 +813,77 @@ class Checkpoints {
 
     bool possible() const { return !text_.empty(); }
 
+    // Collective: on several ranks each writes its own file, rank 0 its
+    // own last (rank_checkpoint_file()).
     fs::path write(const Simulation &sim, RunOutput &out, long next_due, long particle_steps) {
-        if (!possible())
-            throw Error(fmt::format("{}: the scenario's text could not be read, so no checkpoint "
-                                    "can be written",
-                                    sc_.file));
-        std::error_code ec;
-        fs::create_directories(dir_, ec);
-        if (ec)
-            throw Error(fmt::format("{}: cannot create the checkpoint folder: {}", dir_.string(),
-                                    ec.message()));
+        const Comm &comm = sim.comm();
         Checkpoint c;
+        together(comm, [&] {
+            if (!possible())
+                throw Error(fmt::format("{}: the scenario's text could not be read, so no "
+                                        "checkpoint can be written",
+                                        sc_.file));
+            make_folder(dir_);
+            c.output = out.progress();
+        });
         c.scenario_path = fs::absolute(sc_.file).string();
         c.scenario_text = text_;
         c.scenario_sha256 = sha_;
         c.plugins = plugins_;
-        c.output = out.progress();
         c.output.next_due = next_due;
         c.output.particle_steps = particle_steps;
         c.state = sim.snapshot();
         const fs::path file = dir_ / fmt::format("checkpoint_{:010d}.h5", sim.steps());
-        write_checkpoint(file, c);
+        together(comm, [&] {
+            if (comm.rank() != 0) write_checkpoint(rank_checkpoint_file(file, comm.rank()), c);
+        });
+        together(comm, [&] {
+            if (comm.rank() != 0) return;
+            write_checkpoint(file, c);
+            prune();
+        });
         ++written_;
-        prune();
         return file;
     }
     int written() const { return written_; }
 
   private:
-    // The newest `keep` stay (by step, in the name).
+    // The newest `keep` complete checkpoints stay (rank 0's file there),
+    // with their ranks' files; older ones go, rank 0's file first, so that
+    // an interrupted removal never leaves one that looks complete.
     void prune() {
-        std::vector<fs::path> all;
+        std::map<long, std::vector<fs::path>> by_step; // rank 0's file first in each
+        std::vector<long> complete;
         std::error_code ec;
-        for (const auto &e : fs::directory_iterator(dir_, ec))
-            if (e.path().filename().string().rfind("checkpoint_", 0) == 0 &&
-                e.path().extension() == ".h5")
-                all.push_back(e.path());
-        std::sort(all.begin(), all.end());
+        for (const auto &e : fs::directory_iterator(dir_, ec)) {
+            const std::string name = e.path().filename().string();
+            long step = -1;
+            char rest[16] = {};
+            if (e.path().extension() != ".h5" ||
+                std::sscanf(name.c_str(), "checkpoint_%ld%15s", &step, rest) < 1)
+                continue;
+            std::vector<fs::path> &files = by_step[step];
+            if (std::string(rest) == ".h5") {
+                files.insert(files.begin(), e.path());
+                complete.push_back(step);
+            } else {
+                files.push_back(e.path());
+            }
+        }
+        if (ec)
+            throw Error(
+                fmt::format("{}: cannot list the checkpoints: {}", dir_.string(), ec.message()));
+        std::sort(complete.begin(), complete.end());
         const std::size_t keep = static_cast<std::size_t>(sc_.checkpoint.keep);
-        for (std::size_t k = 0; k + keep < all.size(); ++k)
-            if (!fs::remove(all[k], ec) && ec)
-                throw Error(fmt::format("{}: cannot remove an old checkpoint: {}", all[k].string(),
-                                        ec.message()));
+        if (complete.size() <= keep) return;
+        const long oldest_kept = complete[complete.size() - keep];
+        for (const auto &[step, files] : by_step) {
+            if (step >= oldest_kept) break;
+            for (const fs::path &f : files)
+                if (!fs::remove(f, ec) && ec)
+                    throw Error(fmt::format("{}: cannot remove an old checkpoint: {}", f.string(),
+                                            ec.message()));
+        }
     }
     fs::path dir_;
     const Scenario &sc_;
@@ -715,64 +892,96 @@ class Checkpoints {
     int written_ = 0;
 };
 
+// A step (or a stage's start) failed: the state then goes to the output
+// and, for a plugin's failure, the call to replay; the message says where.
+// On several ranks an agreed failure is written by all of them (the failed
+// call by the rank it failed on) and rank 0's message names every file;
+// any other failure is one rank's alone and goes up as it is.
+[[noreturn]] void failed(const Error &e, RunOutput &out, const Simulation &sim,
+                         const fs::path &dir) {
+    const Comm &comm = sim.comm();
+    if (!comm.distributed())
+        throw Error(e.what() + out.write_failure() + write_replay_case(sim, dir));
+    if (!dynamic_cast<const AgreedError *>(&e)) throw;
+    const std::string where = out.write_failure();
+    const std::string replay = write_replay_case(sim, dir);
+    std::string replays;
+    const std::vector<std::vector<std::byte>> all = comm.gather(
+        std::vector<std::byte>(reinterpret_cast<const std::byte *>(replay.data()),
+                               reinterpret_cast<const std::byte *>(replay.data() + replay.size())));
+    for (const auto &r : all)
+        replays.append(reinterpret_cast<const char *>(r.data()), r.size());
+    throw AgreedError(e.what() + where + replays);
+}
+
 void write_or_stop(RunOutput &out, const Simulation &sim) {
     try {
         out.write();
     } catch (const Error &e) {
-        throw Error(fmt::format("{}\nthe run stopped at step {} (t = {:.6g} s)", e.what(),
-                                sim.steps(), sim.time()));
+        const std::string m = fmt::format("{}\nthe run stopped at step {} (t = {:.6g} s)", e.what(),
+                                          sim.steps(), sim.time());
+        if (dynamic_cast<const AgreedError *>(&e)) throw AgreedError(m);
+        throw Error(m);
     }
 }
 
 } // namespace
 
 RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) {
+    // On several ranks every rank runs this function; rank 0 writes the
+    // files all ranks share and the log (the others get a silent one), and
+    // every failure is agreed on (together(), fail_together()) so that all
+    // ranks stop at the same point.
+    const Comm &comm = opt.solver.comm;
+    const bool root = comm.rank() == 0;
     const fs::path dir = opt.output_dir.empty() ? default_output_dir(sc.file) : opt.output_dir;
-    // A misspelt field is refused before any work, not after the run.
     std::vector<long> final_offsets;
-    if (!opt.final_field.empty() && !is_builtin_field(opt.final_field))
-        final_offsets = final_field_offsets(sc, opt.final_field);
-    else
-        final_offsets.assign(sc.materials.size(), -1);
-    // Refuse before any work: a previous run's files are never overwritten
-    // silently.
-    std::error_code ec;
-    if (opt.restart) {
-        const std::vector<std::string> diff =
-            identity_differences(*opt.restart, plugin_identities(sc));
-        if (!diff.empty()) {
-            std::string all;
-            for (const std::string &d : diff)
-                all += "\n  " + d;
-            if (!opt.force_restart)
+    together(comm, [&] {
+        // A misspelt field is refused before any work, not after the run.
+        if (!opt.final_field.empty() && !is_builtin_field(opt.final_field))
+            final_offsets = final_field_offsets(sc, opt.final_field);
+        else
+            final_offsets.assign(sc.materials.size(), -1);
+        // Refuse before any work: a previous run's files are never
+        // overwritten silently.
+        std::error_code ec;
+        if (opt.restart) {
+            const std::vector<std::string> diff =
+                identity_differences(*opt.restart, plugin_identities(sc));
+            if (!diff.empty()) {
+                std::string all;
+                for (const std::string &d : diff)
+                    all += "\n  " + d;
+                if (!opt.force_restart)
+                    throw Error(fmt::format(
+                        "the checkpoint was written by other binaries than this run would use:{}\n"
+                        "the run was not continued: a result made by two builds is not one "
+                        "result; pass --force-restart to continue anyway",
+                        all));
+                log << fmt::format("talus: warning: continuing with other binaries than the "
+                                   "checkpoint's (--force-restart):{}\n",
+                                   all);
+            }
+            if (!fs::is_directory(dir))
                 throw Error(fmt::format(
-                    "the checkpoint was written by other binaries than this run would use:{}\n"
-                    "the run was not continued: a result made by two builds is not one result; "
-                    "pass --force-restart to continue anyway",
-                    all));
-            log << fmt::format("talus: warning: continuing with other binaries than the "
-                               "checkpoint's (--force-restart):{}\n",
-                               all);
-        }
-        if (!fs::is_directory(dir))
-            throw Error(fmt::format("{}: no such folder: the checkpoint's run output is not there",
-                                    dir.string()));
-    } else if (fs::exists(dir, ec)) {
-        if (!fs::is_directory(dir, ec))
-            throw Error(fmt::format("{}: exists and is not a directory", dir.string()));
-        std::vector<fs::path> previous;
-        for (const auto &e : fs::directory_iterator(dir, ec))
-            if (is_own_file(e.path())) previous.push_back(e.path());
-        if (ec)
-            throw Error(fmt::format("{}: cannot list the folder: {}", dir.string(), ec.message()));
-        if (!previous.empty()) {
-            if (!opt.force)
+                    "{}: no such folder: the checkpoint's run output is not there", dir.string()));
+        } else if (fs::exists(dir, ec)) {
+            if (!fs::is_directory(dir, ec))
+                throw Error(fmt::format("{}: exists and is not a directory", dir.string()));
+            std::vector<fs::path> previous;
+            for (const auto &e : fs::directory_iterator(dir, ec))
+                if (is_own_file(e.path())) previous.push_back(e.path());
+            if (ec)
+                throw Error(
+                    fmt::format("{}: cannot list the folder: {}", dir.string(), ec.message()));
+            std::sort(previous.begin(), previous.end());
+            if (!previous.empty() && !opt.force)
                 throw Error(fmt::format(
                     "{}: holds the output of a previous run ({} and {} more file(s)); "
                     "pass --force to overwrite it, or choose another --output-dir",
                     dir.string(), previous.front().filename().string(), previous.size() - 1));
         }
-    }
+    });
     Prepared prep;
     if (opt.restart) {
         prep.sim = std::make_unique<Simulation>(sc, opt.solver, opt.restart->state);
@@ -788,36 +997,46 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
         for (const std::string &w : prep.plan.over_limits)
             all += (all.empty() ? "" : "\n") + w;
         if (!opt.allow_large)
-            throw Error(all + "\nthe run was not started; pass --allow-large to run it anyway");
+            fail_together(comm,
+                          all + "\nthe run was not started; pass --allow-large to run it anyway");
         log << all << '\n';
     }
 
     // Now the old files go: a run refused above leaves them as they were.
-    if (!opt.restart && fs::exists(dir / "checkpoints", ec))
-        for (const auto &e : fs::directory_iterator(dir / "checkpoints", ec))
-            if (e.path().extension() == ".h5" && !fs::remove(e.path(), ec) && ec)
-                throw Error(fmt::format("{}: cannot remove the previous run's checkpoint: {}",
-                                        e.path().string(), ec.message()));
-    if (!opt.restart && fs::exists(dir, ec))
-        for (const auto &e : fs::directory_iterator(dir, ec))
-            if (is_own_file(e.path()) && !fs::remove(e.path(), ec) && ec)
-                throw Error(fmt::format("{}: cannot remove the previous run's file: {}",
-                                        e.path().string(), ec.message()));
-    fs::create_directories(dir, ec);
-    if (ec)
-        throw Error(
-            fmt::format("{}: cannot create the output folder: {}", dir.string(), ec.message()));
+    together(comm, [&] {
+        if (!root) return;
+        std::error_code ec;
+        if (!opt.restart && fs::exists(dir / "checkpoints", ec))
+            for (const auto &e : fs::directory_iterator(dir / "checkpoints", ec))
+                if (e.path().extension() == ".h5" && !fs::remove(e.path(), ec) && ec)
+                    throw Error(fmt::format("{}: cannot remove the previous run's checkpoint: {}",
+                                            e.path().string(), ec.message()));
+        if (!opt.restart && fs::exists(dir, ec)) {
+            std::vector<fs::path> old;
+            for (const auto &e : fs::directory_iterator(dir, ec))
+                if (is_own_file(e.path())) old.push_back(e.path());
+            for (const fs::path &p : old)
+                remove_own(p, "the previous run's file");
+        }
+        fs::create_directories(dir, ec);
+        if (ec)
+            throw Error(
+                fmt::format("{}: cannot create the output folder: {}", dir.string(), ec.message()));
+    });
 
     RunOutput out(dir, sc, sim, prep.probe_particles, opt.restart ? &opt.restart->output : nullptr);
-    Checkpoints checkpoints(dir, sc,
-                            opt.restart                 ? opt.restart->scenario_text
-                            : opt.scenario_text.empty() ? scenario_text_of(sc)
-                                                        : opt.scenario_text);
-    if (!checkpoints.possible() &&
-        (sc.checkpoint.every || sc.checkpoint.steps || sc.checkpoint.wall))
-        throw Error(fmt::format("{}: cannot read the scenario's text, which every checkpoint "
-                                "stores",
-                                sc.file));
+    std::optional<Checkpoints> made;
+    together(comm, [&] {
+        made.emplace(dir, sc,
+                     opt.restart                 ? opt.restart->scenario_text
+                     : opt.scenario_text.empty() ? scenario_text_of(sc)
+                                                 : opt.scenario_text);
+        if (!made->possible() && (sc.checkpoint.every || sc.checkpoint.steps || sc.checkpoint.wall))
+            throw Error(fmt::format("{}: cannot read the scenario's text, which every checkpoint "
+                                    "stores",
+                                    sc.file));
+    });
+    Checkpoints &checkpoints = *made;
     const StopSignals stop_signals;
     crash::set_last_action(write_state_after_crash, &out);
     const ClearLastAction clear_on_exit;
@@ -831,15 +1050,20 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     std::size_t warnings_shown = 0;
     if (!opt.restart) out.write();
     const double end = sc.end_time;
+    const std::size_t particles = sim.particle_count(); // collective: on every rank
+    const std::string spread =
+        comm.distributed()
+            ? fmt::format(" on {} ranks of {} thread(s)", comm.size(), Simulation::max_threads())
+            : std::string();
     if (opt.progress && opt.restart)
         log << fmt::format("talus: continuing from step {} (t = {:.6g} s, stage '{}'), {} "
-                           "particles\n",
-                           sim.steps(), sim.time(), sim.stages()[sim.stage()].name,
-                           sim.particle_count());
+                           "particles{}\n",
+                           sim.steps(), sim.time(), sim.stages()[sim.stage()].name, particles,
+                           spread);
     else if (opt.progress)
-        log << fmt::format("talus: {} particles; about {:.3g} steps of {:.3g} s to t = {:g} s "
+        log << fmt::format("talus: {} particles{}; about {:.3g} steps of {:.3g} s to t = {:g} s "
                            "(estimated from the initial state)\n",
-                           sim.particle_count(), prep.plan.steps, prep.plan.first_dt, end);
+                           particles, spread, prep.plan.steps, prep.plan.first_dt, end);
     // The rate is of this process's steps.
     const long particle_steps_before = particle_steps;
     const double time_before = sim.time();
@@ -862,24 +1086,36 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
             now = true;
             next_ck = next_multiple(sim.time(), *ck.every, next_ck);
         }
-        if (ck.wall && elapsed() - last_ck_wall >= *ck.wall) now = true;
+        if (ck.wall) {
+            // Each rank's clock differs: rank 0's decides.
+            double wall = root && elapsed() - last_ck_wall >= *ck.wall ? 1.0 : 0.0;
+            if (comm.distributed()) wall = comm.max(wall);
+            if (wall > 0.0) now = true;
+        }
         return now;
     };
     auto stop_if_signalled = [&] {
-        if (!g_stop_signal) return;
-        const int sig = g_stop_signal;
+        int sig = g_stop_signal;
+        // A launcher signals every rank, not at the same step: all stop at
+        // the first step's end where any has been.
+        if (comm.distributed()) sig = static_cast<int>(comm.max(static_cast<double>(sig)));
+        if (!sig) return;
         const char *name = sig == SIGTERM ? "SIGTERM" : sig == SIGINT ? "SIGINT" : "a signal";
-        if (!checkpoints.possible())
+        if (!checkpoints.possible()) // the same on every rank
             throw Interrupted(fmt::format("talus: stopped by {} at step {} (t = {:.6g} s); no "
                                           "checkpoint could be written: {}",
                                           name, sim.steps(), sim.time(),
                                           "the scenario's text could not be read"),
                               sig);
         const fs::path file = checkpoints.write(sim, out, next_k, particle_steps);
-        throw Interrupted(fmt::format("talus: stopped by {} at step {} (t = {:.6g} s); the run "
-                                      "continues with: talus run --restart {}",
-                                      name, sim.steps(), sim.time(), file.string()),
-                          sig);
+        throw Interrupted(
+            fmt::format(
+                "talus: stopped by {} at step {} (t = {:.6g} s); the run "
+                "continues with: {}talus run --restart {}{}",
+                name, sim.steps(), sim.time(),
+                comm.distributed() ? fmt::format("mpirun -np {} ", comm.size()) : std::string(),
+                file.string(), comm.distributed() ? " (or on any other number of ranks)" : ""),
+            sig);
     };
     for (;;) {
         const StageSpec &stage = sim.stages()[sim.stage()];
@@ -888,7 +1124,7 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
             try {
                 sim.step(sim.stage_end() - sim.time());
             } catch (const Error &e) {
-                throw Error(e.what() + out.write_failure() + write_replay_case(sim, dir));
+                failed(e, out, sim, dir);
             }
             particle_steps += static_cast<long>(sim.particle_count());
             for (; warnings_shown < sim.warnings().size(); ++warnings_shown)
@@ -947,9 +1183,11 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
                     : std::string(),
                 out.last_written());
             if (stage.until->stop_if_not_met)
-                throw Error(stage.until->origin.error(
-                    what + "; lengthen the duration or damp more, or set until.otherwise: "
-                           "continue to go on regardless"));
+                fail_together(comm,
+                              stage.until->origin.error(
+                                  what +
+                                  "; lengthen the duration or damp more, or set until.otherwise: "
+                                  "continue to go on regardless"));
             log << stage.until->origin.warning(what + "; going on (until.otherwise: continue)")
                 << '\n';
         }
@@ -957,7 +1195,7 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
         try {
             sim.begin_next_stage();
         } catch (const Error &e) {
-            throw Error(e.what() + out.write_failure() + write_replay_case(sim, dir));
+            failed(e, out, sim, dir);
         }
         log << fmt::format("talus: stage '{}' begins at t = {:.6g} s\n",
                            sim.stages()[sim.stage()].name, sim.time());
@@ -970,6 +1208,7 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     rs.time = sim.time();
     rs.seconds = elapsed();
     rs.particles = sim.particle_count();
+    rs.ranks = comm.size();
     rs.particle_steps_per_second =
         static_cast<double>(particle_steps - particle_steps_before) / std::max(rs.seconds, 1e-9);
     rs.outputs = out.outputs();

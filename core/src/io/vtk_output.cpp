@@ -56,50 +56,55 @@ std::string xml_escape(std::string_view s) {
     return out;
 }
 
+// The point data arrays of a particle file, in order: the 13 fixed ones,
+// then the state variables by name across materials (as wide as the widest
+// material's).
+std::vector<VtkArray> point_arrays(const Scenario &sc,
+                                   const std::vector<std::string> &state_fields) {
+    std::vector<VtkArray> a = {{"id", "Int64", 1, {}},         {"group", "Int32", 1, {}},
+                               {"material", "Int32", 1, {}},   {"displacement", "Float64", 3, {}},
+                               {"velocity", "Float64", 3, {}}, {"stress", "Float64", 9, {}},
+                               {"p", "Float64", 1, {}},        {"q", "Float64", 1, {}},
+                               {"volume", "Float64", 1, {}},   {"J", "Float64", 1, {}},
+                               {"density", "Float64", 1, {}},  {"mass", "Float64", 1, {}},
+                               {"F", "Float64", 9, {}}};
+    for (const std::string &name : state_fields) {
+        std::uint32_t size = 0;
+        for (const auto &m : sc.materials)
+            for (const auto &v : m.spec.state.vars)
+                if (v.name == name) size = std::max(size, v.size);
+        a.push_back({name, "Float64", static_cast<int>(size), {}});
+    }
+    return a;
+}
+
 } // namespace
 
 void write_vtu(const fs::path &file, const Simulation &sim,
                const std::vector<std::string> &state_fields) {
     const Scenario &sc = sim.scenario();
     const int D = sc.dim;
-    const std::size_t n = sim.particle_count();
-    std::vector<VtkArray> point_data;
-    // add() hands out references into point_data: no reallocation allowed.
-    point_data.reserve(13 + state_fields.size()); // the 13 fixed arrays below
-    auto add = [&](const std::string &name, const std::string &type, int comps) -> VtkArray & {
-        point_data.push_back(VtkArray{name, type, comps, {}});
-        point_data.back().bytes.reserve(n * static_cast<std::size_t>(comps) * 8);
-        return point_data.back();
-    };
-    VtkArray &id = add("id", "Int64", 1);
-    VtkArray &grp = add("group", "Int32", 1);
-    VtkArray &mat = add("material", "Int32", 1);
-    VtkArray &disp = add("displacement", "Float64", 3);
-    VtkArray &vel = add("velocity", "Float64", 3);
-    VtkArray &sig = add("stress", "Float64", 9);
-    VtkArray &pp = add("p", "Float64", 1);
-    VtkArray &qq = add("q", "Float64", 1);
-    VtkArray &vol = add("volume", "Float64", 1);
-    VtkArray &jj = add("J", "Float64", 1);
-    VtkArray &rho = add("density", "Float64", 1);
-    VtkArray &mass = add("mass", "Float64", 1);
-    VtkArray &F = add("F", "Float64", 9);
-    // State variables by name across materials; a particle whose material
-    // lacks one gets NaN (shown blank in ParaView).
+    std::size_t n = 0; // this rank's
+    for (const ParticleSet &s : sim.sets())
+        n += s.n;
+    std::vector<VtkArray> point_data = point_arrays(sc, state_fields);
+    for (VtkArray &a : point_data)
+        a.bytes.reserve(n * static_cast<std::size_t>(a.components) * 8);
+    // References into point_data, which does not grow from here on.
+    VtkArray &id = point_data[0], &grp = point_data[1], &mat = point_data[2], &disp = point_data[3],
+             &vel = point_data[4], &sig = point_data[5], &pp = point_data[6], &qq = point_data[7],
+             &vol = point_data[8], &jj = point_data[9], &rho = point_data[10],
+             &mass = point_data[11], &F = point_data[12];
+    // The state fields, after the 13 fixed arrays.
     struct StateField {
         std::string name;
         std::uint32_t size = 1;
         std::size_t array = 0;
     };
     std::vector<StateField> sf;
-    for (const std::string &name : state_fields) {
-        std::uint32_t size = 0;
-        for (const auto &m : sc.materials)
-            for (const auto &v : m.spec.state.vars)
-                if (v.name == name) size = std::max(size, v.size);
-        sf.push_back(StateField{name, size, point_data.size()});
-        add(name, "Float64", static_cast<int>(size));
-    }
+    for (std::size_t k = 13; k < point_data.size(); ++k)
+        sf.push_back(StateField{point_data[k].name,
+                                static_cast<std::uint32_t>(point_data[k].components), k});
     VtkArray points{"Points", "Float64", 3, {}};
     for (const ParticleSet &s : sim.sets()) {
         // Where each written state field sits in this material's state
@@ -211,6 +216,23 @@ void write_vtu(const fs::path &file, const Simulation &sim,
     blob(types);
     out.write("\n  </AppendedData>\n</VTKFile>\n");
     out.commit();
+}
+
+void write_pvtu(const fs::path &file, const Simulation &sim,
+                const std::vector<std::string> &state_fields,
+                const std::vector<std::string> &pieces) {
+    std::string x = "<?xml version=\"1.0\"?>\n<VTKFile type=\"PUnstructuredGrid\" "
+                    "version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n"
+                    "  <PUnstructuredGrid GhostLevel=\"0\">\n    <PPointData>\n";
+    for (const VtkArray &a : point_arrays(sim.scenario(), state_fields))
+        x += fmt::format("      <PDataArray type=\"{}\" Name=\"{}\" NumberOfComponents=\"{}\"/>\n",
+                         a.type, xml_escape(a.name), a.components);
+    x += "    </PPointData>\n    <PPoints>\n"
+         "      <PDataArray type=\"Float64\" NumberOfComponents=\"3\"/>\n    </PPoints>\n";
+    for (const std::string &p : pieces)
+        x += fmt::format("    <Piece Source=\"{}\"/>\n", xml_escape(p));
+    x += "  </PUnstructuredGrid>\n</VTKFile>\n";
+    write_file_atomically(file, x);
 }
 
 void write_pvd(const fs::path &file, const std::vector<std::pair<double, std::string>> &entries) {

@@ -110,6 +110,7 @@ struct RunSummary {
     double particle_steps_per_second = 0.0;
     int outputs = 0;
     int checkpoints = 0;
+    int ranks = 1;
     std::filesystem::path output_dir;
 };
 
