@@ -96,11 +96,12 @@ std::vector<std::int64_t> probe_particles(const Scenario &sc, const Simulation &
                     }
                 }
             if (comm.distributed()) {
-                // Ids are below 2^53: exact as doubles.
-                const double nearest = -comm.max(-best);
-                id = static_cast<std::int64_t>(-comm.max(
-                    best == nearest && id >= 0 ? -static_cast<double>(id)
-                                               : -std::numeric_limits<double>::infinity()));
+                // The nearest over the ranks, then the lowest id at that
+                // distance (ids are below 2^53: exact as doubles).
+                const double nearest = comm.min(best);
+                id = static_cast<std::int64_t>(
+                    comm.min(best == nearest && id >= 0 ? static_cast<double>(id)
+                                                        : std::numeric_limits<double>::infinity()));
                 best = nearest;
             }
             if (std::sqrt(best) > sc.cell) // the global nearest: the same on every rank
@@ -142,19 +143,11 @@ void slender_group_notes(const Scenario &sc, const Simulation &sim,
                 hi[g][dd] = std::max(hi[g][dd], s.x0[dd][p]);
             }
         }
-    if (const Comm &comm = sim.comm(); comm.distributed()) {
-        std::vector<double> ext; // -lo and hi: one max over the ranks
-        for (std::size_t g = 0; g < G; ++g)
-            for (std::size_t d = 0; d < 3; ++d) {
-                ext.push_back(-lo[g][d]);
-                ext.push_back(hi[g][d]);
-            }
-        comm.max(ext.data(), ext.size());
-        for (std::size_t g = 0; g < G; ++g)
-            for (std::size_t d = 0; d < 3; ++d) {
-                lo[g][d] = -ext[6 * g + 2 * d];
-                hi[g][d] = ext[6 * g + 2 * d + 1];
-            }
+    // Over the ranks (the arrays of three doubles are contiguous).
+    static_assert(sizeof(std::array<double, 3>) == 3 * sizeof(double));
+    if (G > 0) {
+        sim.comm().min(lo.front().data(), 3 * G);
+        sim.comm().max(hi.front().data(), 3 * G);
     }
     for (std::size_t g = 0; g < G; ++g) {
         const GroupSpec &gs = sc.groups[g];
@@ -300,6 +293,17 @@ void make_folder(const fs::path &dir) {
     fs::create_directories(dir, ec);
     if (ec && !fs::is_directory(dir))
         throw Error(fmt::format("{}: cannot create the folder: {}", dir.string(), ec.message()));
+}
+
+// Every rank's text, in rank order, on rank 0 (collective; the others get
+// their own).
+std::string gather_text(const Comm &comm, const std::string &mine) {
+    if (!comm.distributed()) return mine;
+    const auto *p = reinterpret_cast<const std::byte *>(mine.data());
+    std::string all;
+    for (const auto &r : comm.gather(std::vector<std::byte>(p, p + mine.size())))
+        all.append(reinterpret_cast<const char *>(r.data()), r.size());
+    return comm.rank() == 0 ? all : mine;
 }
 
 std::string fmt_time(double s) {
@@ -749,13 +753,7 @@ void write_final_particles(const fs::path &file, const Simulation &sim, const st
     std::string all = D == 3 ? "id,group,x,y,z," : "id,group,x,y,";
     all += field;
     all += '\n';
-    if (comm.distributed()) {
-        const auto *p = reinterpret_cast<const std::byte *>(text.data());
-        for (const auto &r : comm.gather(std::vector<std::byte>(p, p + text.size())))
-            all.append(reinterpret_cast<const char *>(r.data()), r.size());
-    } else {
-        all += text;
-    }
+    all += gather_text(comm, text);
     together(comm, [&] {
         if (comm.rank() == 0) write_file_atomically(file, all);
     });
@@ -904,14 +902,7 @@ class Checkpoints {
         throw Error(e.what() + out.write_failure() + write_replay_case(sim, dir));
     if (!dynamic_cast<const AgreedError *>(&e)) throw;
     const std::string where = out.write_failure();
-    const std::string replay = write_replay_case(sim, dir);
-    std::string replays;
-    const std::vector<std::vector<std::byte>> all = comm.gather(
-        std::vector<std::byte>(reinterpret_cast<const std::byte *>(replay.data()),
-                               reinterpret_cast<const std::byte *>(replay.data() + replay.size())));
-    for (const auto &r : all)
-        replays.append(reinterpret_cast<const char *>(r.data()), r.size());
-    throw AgreedError(e.what() + where + replays);
+    throw AgreedError(e.what() + where + gather_text(comm, write_replay_case(sim, dir)));
 }
 
 void write_or_stop(RunOutput &out, const Simulation &sim) {
@@ -1018,10 +1009,7 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
             for (const fs::path &p : old)
                 remove_own(p, "the previous run's file");
         }
-        fs::create_directories(dir, ec);
-        if (ec)
-            throw Error(
-                fmt::format("{}: cannot create the output folder: {}", dir.string(), ec.message()));
+        make_folder(dir);
     });
 
     RunOutput out(dir, sc, sim, prep.probe_particles, opt.restart ? &opt.restart->output : nullptr);

@@ -100,6 +100,19 @@ void Comm::max(double *v, std::size_t n) const {
           "MPI_Allreduce");
 }
 
+double Comm::min(double v) const {
+    TALUS_MPI_OR(v);
+    double out = 0.0;
+    check(MPI_Allreduce(&v, &out, 1, MPI_DOUBLE, MPI_MIN, raw(handle_)), "MPI_Allreduce");
+    return out;
+}
+
+void Comm::min(double *v, std::size_t n) const {
+    TALUS_MPI_OR();
+    check(MPI_Allreduce(MPI_IN_PLACE, v, count_of(n), MPI_DOUBLE, MPI_MIN, raw(handle_)),
+          "MPI_Allreduce");
+}
+
 std::vector<std::vector<std::byte>> Comm::exchange(const std::vector<int> &peers,
                                                    const std::vector<std::vector<std::byte>> &send,
                                                    int tag) const {
@@ -259,6 +272,8 @@ long Comm::sum(long v) const { return v; }
 void Comm::sum(double *, std::size_t) const {}
 void Comm::sum(long *, std::size_t) const {}
 void Comm::max(double *, std::size_t) const {}
+double Comm::min(double v) const { return v; }
+void Comm::min(double *, std::size_t) const {}
 std::vector<std::vector<std::byte>> Comm::exchange(const std::vector<int> &peers,
                                                    const std::vector<std::vector<std::byte>> &,
                                                    int) const {

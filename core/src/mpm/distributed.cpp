@@ -33,7 +33,11 @@ void Simulation::Impl::distribute() {
     // order): the weights are global without a message.
     const GridGeometry &geo = grid.geo;
     auto weight = [&](const CellBox &box, int axis) { return plane_counts(sets, geo, box, axis); };
-    decomp = Decomposition::bisect(sc.dim, geo.cells, comm.size(), weight);
+    try { // the same weights on every rank: the same outcome
+        decomp = Decomposition::bisect(sc.dim, geo.cells, comm.size(), weight);
+    } catch (const Error &e) {
+        fail_together(comm, e.what());
+    }
     take_box();
     // This rank's particles, in generation order.
     for (ParticleSet &s : sets) {

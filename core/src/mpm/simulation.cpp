@@ -145,9 +145,9 @@ Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options, const Sn
     if (comm.distributed()) {
         // What several ranks do not do yet (docs/mpi.md, "Not yet").
         if (stages.size() > 1)
-            throw Error(fmt::format("{}: a scenario with stages does not run on several ranks "
-                                    "yet; run it on one",
-                                    sc.file));
+            fail_together(comm, fmt::format("{}: a scenario with stages does not run on several "
+                                            "ranks yet; run it on one",
+                                            sc.file));
         if (!whole) {
             if (restore->boxes.size() != static_cast<std::size_t>(comm.size()) ||
                 restore->rank != comm.rank())
@@ -158,7 +158,11 @@ Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options, const Sn
             std::vector<CellBox> boxes;
             for (const auto &b : restore->boxes)
                 boxes.push_back(CellBox{{b[0], b[1], b[2]}, {b[3], b[4], b[5]}});
-            decomp = Decomposition::from_boxes(sc.dim, domain_cells(sc), boxes);
+            try { // the same boxes on every rank (read_checkpoint_for)
+                decomp = Decomposition::from_boxes(sc.dim, domain_cells(sc), boxes);
+            } catch (const Error &e) {
+                fail_together(comm, e.what());
+            }
             take_box();
         } else if (!restore) {
             distribute();

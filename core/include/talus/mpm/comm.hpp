@@ -39,6 +39,8 @@ class Comm {
     void sum(double *v, std::size_t n) const;
     void sum(long *v, std::size_t n) const;
     void max(double *v, std::size_t n) const;
+    double min(double v) const;
+    void min(double *v, std::size_t n) const;
 
     // Sends bytes to each of `peers` and receives from each of them
     // (collective among the peers: each rank lists the ranks it exchanges
