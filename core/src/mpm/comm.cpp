@@ -61,56 +61,61 @@ bool Comm::built_with_mpi() { return true; }
 #define TALUS_MPI_OR(serial_result)                                                                \
     if (!distributed()) return serial_result
 
+namespace {
+
+MPI_Datatype mpi_type(const double *) { return MPI_DOUBLE; }
+MPI_Datatype mpi_type(const long *) { return MPI_LONG; }
+
+// Every rank's n values combined by `op`, in place.
+template <class T>
+void all_reduce(T *v, std::size_t n, MPI_Op op, MPI_Comm comm) {
+    check(MPI_Allreduce(MPI_IN_PLACE, v, count_of(n), mpi_type(v), op, comm), "MPI_Allreduce");
+}
+
+} // namespace
+
 double Comm::max(double v) const {
     TALUS_MPI_OR(v);
-    double out = 0.0;
-    check(MPI_Allreduce(&v, &out, 1, MPI_DOUBLE, MPI_MAX, raw(handle_)), "MPI_Allreduce");
-    return out;
-}
-
-double Comm::sum(double v) const {
-    TALUS_MPI_OR(v);
-    double out = 0.0;
-    check(MPI_Allreduce(&v, &out, 1, MPI_DOUBLE, MPI_SUM, raw(handle_)), "MPI_Allreduce");
-    return out;
-}
-
-long Comm::sum(long v) const {
-    TALUS_MPI_OR(v);
-    long out = 0;
-    check(MPI_Allreduce(&v, &out, 1, MPI_LONG, MPI_SUM, raw(handle_)), "MPI_Allreduce");
-    return out;
-}
-
-void Comm::sum(double *v, std::size_t n) const {
-    TALUS_MPI_OR();
-    check(MPI_Allreduce(MPI_IN_PLACE, v, count_of(n), MPI_DOUBLE, MPI_SUM, raw(handle_)),
-          "MPI_Allreduce");
-}
-
-void Comm::sum(long *v, std::size_t n) const {
-    TALUS_MPI_OR();
-    check(MPI_Allreduce(MPI_IN_PLACE, v, count_of(n), MPI_LONG, MPI_SUM, raw(handle_)),
-          "MPI_Allreduce");
-}
-
-void Comm::max(double *v, std::size_t n) const {
-    TALUS_MPI_OR();
-    check(MPI_Allreduce(MPI_IN_PLACE, v, count_of(n), MPI_DOUBLE, MPI_MAX, raw(handle_)),
-          "MPI_Allreduce");
+    all_reduce(&v, 1, MPI_MAX, raw(handle_));
+    return v;
 }
 
 double Comm::min(double v) const {
     TALUS_MPI_OR(v);
-    double out = 0.0;
-    check(MPI_Allreduce(&v, &out, 1, MPI_DOUBLE, MPI_MIN, raw(handle_)), "MPI_Allreduce");
-    return out;
+    all_reduce(&v, 1, MPI_MIN, raw(handle_));
+    return v;
+}
+
+double Comm::sum(double v) const {
+    TALUS_MPI_OR(v);
+    all_reduce(&v, 1, MPI_SUM, raw(handle_));
+    return v;
+}
+
+long Comm::sum(long v) const {
+    TALUS_MPI_OR(v);
+    all_reduce(&v, 1, MPI_SUM, raw(handle_));
+    return v;
+}
+
+void Comm::sum(double *v, std::size_t n) const {
+    TALUS_MPI_OR();
+    all_reduce(v, n, MPI_SUM, raw(handle_));
+}
+
+void Comm::sum(long *v, std::size_t n) const {
+    TALUS_MPI_OR();
+    all_reduce(v, n, MPI_SUM, raw(handle_));
+}
+
+void Comm::max(double *v, std::size_t n) const {
+    TALUS_MPI_OR();
+    all_reduce(v, n, MPI_MAX, raw(handle_));
 }
 
 void Comm::min(double *v, std::size_t n) const {
     TALUS_MPI_OR();
-    check(MPI_Allreduce(MPI_IN_PLACE, v, count_of(n), MPI_DOUBLE, MPI_MIN, raw(handle_)),
-          "MPI_Allreduce");
+    all_reduce(v, n, MPI_MIN, raw(handle_));
 }
 
 std::vector<std::vector<std::byte>> Comm::exchange(const std::vector<int> &peers,
