@@ -21,6 +21,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <map>
 
 namespace {
@@ -94,8 +95,19 @@ struct Outcome {
     double max_state = 0.0; // the largest plugin state value (rank 0)
 };
 
-// Runs `yaml` for `steps` on all ranks and, on rank 0, alone; compares.
-Outcome compare(const std::string &yaml, int steps, const Scales &tol) {
+// Advances a simulation (the same way on the ranks and alone).
+using Advance = std::function<void(talus::Simulation &)>;
+
+Advance steps_of(int steps) {
+    return [steps](talus::Simulation &sim) {
+        for (int k = 0; k < steps; ++k)
+            sim.step(1.0);
+    };
+}
+
+// Runs `yaml` on all ranks and, on rank 0, alone, each advanced by
+// `advance`; compares.
+Outcome compare(const std::string &yaml, const Advance &advance, const Scales &tol) {
     const Comm comm = Comm::world();
     auto make = [&](const Comm &c) {
         auto s = talus::test::sim_from_text(yaml);
@@ -106,8 +118,7 @@ Outcome compare(const std::string &yaml, int steps, const Scales &tol) {
     };
     auto ranks = make(comm);
     const int dim = ranks->scenario.dim;
-    for (int k = 0; k < steps; ++k)
-        ranks->sim->step(1.0);
+    advance(*ranks->sim);
     const Particles all = gathered(comm, *ranks->sim, dim);
     Outcome o;
     o.migrated = comm.sum(ranks->sim->traffic().migrated);
@@ -116,8 +127,8 @@ Outcome compare(const std::string &yaml, int steps, const Scales &tol) {
     const double t_ranks = ranks->sim->time();
     if (comm.rank() != 0) return o;
     auto alone = make(Comm::serial());
-    for (int k = 0; k < steps; ++k)
-        alone->sim->step(1.0);
+    advance(*alone->sim);
+    EXPECT_EQ(ranks->sim->steps(), alone->sim->steps());
     // The same dt each step (from max(c + |v|), which moves by round-off):
     // the times agree to the steps' round-off.
     EXPECT_NEAR(t_ranks, alone->sim->time(), 1e-12 * alone->sim->time());
@@ -183,7 +194,7 @@ TEST(Mpi, AnElasticDiscAcrossTheRanksMatchesOneRank) {
                              "{shape: bspline3, transfer: {type: flip, alpha: 0.95}}"};
     for (const char *solver : solvers) {
         SCOPED_TRACE(solver);
-        const Outcome o = compare(thrown_disc(solver), 200, {2e-12, 6e-12, 2e-8});
+        const Outcome o = compare(thrown_disc(solver), steps_of(200), {2e-12, 6e-12, 2e-8});
         if (Comm::world().size() > 1) {
             EXPECT_GT(o.migrated, 100) << "no particle crossed";
         }
@@ -232,7 +243,7 @@ TEST(Mpi, AMohrCoulombColumnCollapsingAcrossTheRanksMatchesOneRank) {
     for (int dim : {2, 3}) {
         SCOPED_TRACE(dim);
         const Outcome o =
-            compare(collapsing_column(dim), dim == 2 ? 500 : 300, {2e-12, 5e-12, 3e-8});
+            compare(collapsing_column(dim), steps_of(dim == 2 ? 500 : 300), {2e-12, 5e-12, 3e-8});
         if (Comm::world().size() > 1) {
             EXPECT_GT(o.migrated, 100) << "no particle crossed";
             EXPECT_GE(o.rebalances, 1) << "the cells were never shared anew";
@@ -242,6 +253,91 @@ TEST(Mpi, AMohrCoulombColumnCollapsingAcrossTheRanksMatchesOneRank) {
             // yielded (this is a plastic test).
             EXPECT_GT(o.max_state, 0.01);
         }
+    }
+}
+
+namespace {
+
+// An analysis in two stages whose changes fall on several ranks' cells: a
+// soil column held by a prop settles under gravity on a firm base with
+// local damping until it is at rest (the default hold, from the body's
+// extent over all ranks); then the prop is removed, the column turns from
+// elastic to Mohr-Coulomb (its set-up call sees the settled stress), a
+// fill appears at the far end (each rank keeps its part) under a point
+// load on a corner of it that lies on one rank's cells, displacements
+// and velocities are reset, and the column collapses.
+const char *const staged_collapse =
+    "talus: 1\ndimension: 2\ngrid: {origin: [0, 0], size: [0.6, 0.4], cell: 0.025}\n"
+    "materials:\n"
+    "  firm: {model: linear_elastic, density: 1800, youngs_modulus: 5.0e5, poisson_ratio: 0.3}\n"
+    "  sand: {model: mohr_coulomb, density: 1800, youngs_modulus: 5.0e5, poisson_ratio: 0.3,\n"
+    "         friction_angle: 30, dilation_angle: 0, cohesion: 0}\n"
+    "groups:\n"
+    "  base: {material: firm, particles_per_cell: 2, shape: {box: {min: [0, 0], max: [0.6, "
+    "0.1]}},\n"
+    "         initial_stress: {geostatic: {k0: 0.5}}}\n"
+    "  column: {material: firm, particles_per_cell: 2,\n"
+    "           shape: {box: {min: [0, 0.1], max: [0.15, 0.35]}},\n"
+    "           initial_stress: {geostatic: {k0: 0.5}}}\n"
+    "  prop: {material: firm, particles_per_cell: 2,\n"
+    "         shape: {box: {min: [0.15, 0.1], max: [0.2, 0.35]}}}\n"
+    "  fill: {material: sand, particles_per_cell: 2,\n"
+    "         shape: {box: {min: [0.45, 0.1], max: [0.6, 0.2]}},\n"
+    "         initial_stress: {geostatic: {k0: 0.5}}}\n"
+    "boundaries: {x-: {friction: 0.4}, x+: roller, y-: fixed}\ngravity: [0, -9.81]\n"
+    "solver: {transfer: apic, load_balance: {imbalance: 1.1, every: 5}}\n"
+    "stages:\n"
+    "  - name: settle\n"
+    "    duration: 0.5\n"
+    "    damping: {type: local, coefficient: 0.7}\n"
+    "    until: {kinetic_energy_ratio: 1.0e-3, otherwise: continue}\n"
+    "  - name: collapse\n"
+    "    duration: 0.25\n"
+    "    damping: none\n"
+    "    remove: [prop]\n"
+    "    activate: [fill]\n"
+    "    set_material: {column: sand}\n"
+    "    reset: [displacement, velocity]\n"
+    "    loads: [{point: [0, -0.5], group: fill, box: {min: [0.55, 0.15], max: [0.6, 0.2]}}]\n";
+
+} // namespace
+
+// 0.5 s of settling (the rest test ends it earlier when met) and 0.25 s of
+// collapse at dt ~ 3.9e-4 s: at most ~1,900 steps. 1e-15 relative per step
+// over them leaves 2e-12 of the scales (0.35 m, 1 m/s, rho g H = 6e3 Pa);
+// the tolerances allow ten times that. Both runs must end the first stage
+// at the same step: the rest test's ratio and hold are global sums and
+// extents, and differ from one rank's only by round-off.
+TEST(Mpi, AnAnalysisInStagesAcrossTheRanksMatchesOneRank) {
+    // Each run's stage ends (step, why): the ranks' run, then (rank 0) the
+    // one-rank run.
+    std::vector<std::vector<std::pair<long, talus::StageEnd>>> runs;
+    const Advance all_stages = [&runs](talus::Simulation &sim) {
+        auto &ends = runs.emplace_back();
+        for (;;) {
+            talus::StageEnd why;
+            while ((why = sim.stage_end_reached()) == talus::StageEnd::running)
+                sim.step(sim.stage_end() - sim.time());
+            ends.emplace_back(sim.steps(), why);
+            if (sim.stage() + 1 == sim.stages().size()) return;
+            sim.begin_next_stage();
+        }
+    };
+    const Outcome o = compare(staged_collapse, all_stages, {2e-11, 5e-11, 6e-7});
+    if (Comm::world().rank() == 0) {
+        ASSERT_EQ(runs.size(), 2u);
+        ASSERT_EQ(runs[0].size(), 2u);
+        std::printf("  stage ends at steps %ld (%s) and %ld\n", runs[0][0].first,
+                    runs[0][0].second == talus::StageEnd::quiescent ? "at rest" : "duration",
+                    runs[0][1].first);
+        EXPECT_EQ(runs[0], runs[1]) << "the ranks ended a stage at another step";
+        // The settling stage came to rest: the rest test ran on every rank.
+        EXPECT_EQ(runs[0][0].second, talus::StageEnd::quiescent);
+        // The column yielded once it was sand.
+        EXPECT_GT(o.max_state, 0.01);
+    }
+    if (Comm::world().size() > 1) {
+        EXPECT_GT(o.migrated, 10) << "no particle crossed";
     }
 }
 

@@ -419,9 +419,15 @@ class RunOutput {
     // it went (or why it could not be written) for the error message.
     // `all_ranks`: every rank is here (an agreed failure); otherwise this
     // rank writes its piece alone (a crash).
-    std::string write_failure(bool all_ranks = true) noexcept {
+    // `state`: what the particles are in (default: part way through the
+    // next step).
+    std::string write_failure(bool all_ranks = true, const std::string &state = {}) noexcept {
         try {
             const std::string stem = fmt::format("failure_step{}", sim_.steps() + 1);
+            const std::string how =
+                state.empty()
+                    ? fmt::format("particles may be part way through step {}", sim_.steps() + 1)
+                    : state;
             fs::path file;
             if (all_ranks || !comm_.distributed()) {
                 file = dir_ / particles(stem);
@@ -430,14 +436,13 @@ class RunOutput {
                 file = dir_ / stem / piece(comm_.rank());
                 make_folder(file.parent_path());
                 write_vtu(file, sim_, fields_);
-                return fmt::format("\nthe state of rank {} when it stopped is in {} (particles "
-                                   "may be part way through step {})",
-                                   comm_.rank(), file.string(), sim_.steps() + 1);
+                return fmt::format("\nthe state of rank {} when it stopped is in {} ({})",
+                                   comm_.rank(), file.string(), how);
             }
             return fmt::format(
                 "\nthe state when the run stopped is in {} and the last row of diagnostics.csv "
-                "(particles may be part way through step {})",
-                file.string(), sim_.steps() + 1);
+                "({})",
+                file.string(), how);
         } catch (const std::exception &e) {
             return fmt::format("\nthe state when the run stopped could not be written: {}",
                                e.what());
@@ -895,13 +900,13 @@ class Checkpoints {
 // On several ranks an agreed failure is written by all of them (the failed
 // call by the rank it failed on) and rank 0's message names every file;
 // any other failure is one rank's alone and goes up as it is.
-[[noreturn]] void failed(const Error &e, RunOutput &out, const Simulation &sim,
-                         const fs::path &dir) {
+[[noreturn]] void failed(const Error &e, RunOutput &out, const Simulation &sim, const fs::path &dir,
+                         const std::string &state = {}) {
     const Comm &comm = sim.comm();
     if (!comm.distributed())
-        throw Error(e.what() + out.write_failure() + write_replay_case(sim, dir));
+        throw Error(e.what() + out.write_failure(true, state) + write_replay_case(sim, dir));
     if (!dynamic_cast<const AgreedError *>(&e)) throw;
-    const std::string where = out.write_failure();
+    const std::string where = out.write_failure(true, state);
     throw AgreedError(e.what() + where + gather_text(comm, write_replay_case(sim, dir)));
 }
 
@@ -1183,7 +1188,10 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
         try {
             sim.begin_next_stage();
         } catch (const Error &e) {
-            failed(e, out, sim, dir);
+            failed(e, out, sim, dir,
+                   fmt::format("particles as at the end of step {}, with the changes of stage "
+                               "'{}' to its groups and materials possibly part made",
+                               sim.steps(), sim.stages()[sim.stage()].name));
         }
         log << fmt::format("talus: stage '{}' begins at t = {:.6g} s\n",
                            sim.stages()[sim.stage()].name, sim.time());

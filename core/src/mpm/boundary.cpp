@@ -23,10 +23,12 @@ Boundary::Boundary(const Scenario &sc, const Conditions &c, const Grid &grid, do
         // only when it holds none on any.
         const long held = comm.sum(static_cast<long>(p.nodes.size()));
         if (held == 0)
-            throw Error(nv.origin.error(fmt::format(
-                "the box holds no grid node (nodes are {:g} m apart{}); enlarge the box",
-                grid.geo.h,
-                face_layer(sc.solver.shape) > 0 ? ", at their Greville points near a face" : "")));
+            fail_together(
+                comm, nv.origin.error(fmt::format(
+                          "the box holds no grid node (nodes are {:g} m apart{}); enlarge the box",
+                          grid.geo.h,
+                          face_layer(sc.solver.shape) > 0 ? ", at their Greville points near a face"
+                                                          : "")));
         prescribed_.push_back(std::move(p));
     }
     for (const ParticleVelocity &pv : c.particle_velocities)

@@ -39,14 +39,16 @@ void Simulation::Impl::distribute() {
         fail_together(comm, e.what());
     }
     take_box();
-    // This rank's particles, in generation order.
-    for (ParticleSet &s : sets) {
-        std::size_t keep = 0;
-        for (std::size_t p = 0; p < s.n; ++p) {
-            if (decomp.owner(particle_cell(grid.geo, s, p)) == comm.rank()) s.move(p, keep++);
-        }
-        s.resize(keep);
-    }
+    for (ParticleSet &s : sets)
+        keep_own(s, 0);
+}
+
+// The kept points stay in generation order.
+void Simulation::Impl::keep_own(ParticleSet &s, std::size_t begin) const {
+    std::size_t keep = begin;
+    for (std::size_t p = begin; p < s.n; ++p)
+        if (decomp.owner(particle_cell(grid.geo, s, p)) == comm.rank()) s.move(p, keep++);
+    s.resize(keep);
 }
 
 void Simulation::Impl::take_box() {

@@ -221,9 +221,9 @@ void add_group(const Scenario &sc, std::size_t gi, const Vec3 &gravity, std::int
 // A load or a fixity that acts on nothing is a mistake in its box or
 // group, not a no-op.
 void select_particles(const Scenario &sc, const Conditions &c, std::vector<ParticleSet> &sets,
-                      std::string_view when) {
+                      std::string_view when, const Comm &comm) {
     const int D = sc.dim;
-    std::vector<char> load_used(c.loads.size(), 0), fix_used(c.particle_velocities.size(), 0);
+    std::vector<double> load_used(c.loads.size(), 0.0), fix_used(c.particle_velocities.size(), 0.0);
     for (ParticleSet &s : sets)
         for (std::size_t p = 0; p < s.n; ++p) {
             const double x[3] = {s.x[0][p], s.x[1][p], D == 3 ? s.x[2][p] : 0.0};
@@ -233,25 +233,29 @@ void select_particles(const Scenario &sc, const Conditions &c, std::vector<Parti
                 const Load &ld = c.loads[l];
                 if ((!ld.group || *ld.group == gi) && (!ld.box || ld.box->contains(x, D))) {
                     lm |= 1u << l;
-                    load_used[l] = 1;
+                    load_used[l] = 1.0;
                 }
             }
             for (std::size_t f = 0; f < c.particle_velocities.size(); ++f) {
                 const ParticleVelocity &pv = c.particle_velocities[f];
                 if ((!pv.group || *pv.group == gi) && (!pv.box || pv.box->contains(x, D))) {
                     fm |= 1u << f;
-                    fix_used[f] = 1;
+                    fix_used[f] = 1.0;
                 }
             }
             s.load_mask[p] = lm;
             s.fix_mask[p] = fm;
         }
+    if (comm.distributed()) {
+        comm.max(load_used.data(), load_used.size());
+        comm.max(fix_used.data(), fix_used.size());
+    }
     const std::string what =
         fmt::format("selects no particle (its box and group have no particle in common {})", when);
     for (std::size_t k = 0; k < c.loads.size(); ++k)
-        if (!load_used[k]) throw Error(c.loads[k].origin.error(what));
+        if (load_used[k] == 0.0) fail_together(comm, c.loads[k].origin.error(what));
     for (std::size_t k = 0; k < c.particle_velocities.size(); ++k)
-        if (!fix_used[k]) throw Error(c.particle_velocities[k].origin.error(what));
+        if (fix_used[k] == 0.0) fail_together(comm, c.particle_velocities[k].origin.error(what));
 }
 
 } // namespace talus

@@ -3,6 +3,7 @@
 // the group's initial velocity and stress.
 #pragma once
 
+#include <talus/mpm/comm.hpp>
 #include <talus/mpm/particles.hpp>
 #include <talus/mpm/scenario.hpp>
 
@@ -40,8 +41,10 @@ void add_group(const Scenario &sc, std::size_t gi, const Vec3 &gravity, std::int
 // Which loads and fixities of a stage's conditions act on each particle,
 // by its group and current position (the load and fixity masks). Throws,
 // at the entry's place in the file, for one that selects no particle;
-// `when` says when ("at t = 0", "at the start of stage 'cut'").
+// `when` says when ("at t = 0", "at the start of stage 'cut'"). On several
+// ranks (collective), an entry is refused when it selects no particle on
+// any rank, on every rank alike.
 void select_particles(const Scenario &sc, const Conditions &c, std::vector<ParticleSet> &sets,
-                      std::string_view when);
+                      std::string_view when, const Comm &comm = Comm::serial());
 
 } // namespace talus

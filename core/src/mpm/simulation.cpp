@@ -87,12 +87,14 @@ std::vector<std::unique_ptr<MaterialInstance>> make_instances(const Scenario &sc
 std::vector<ParticleSet>
 initial_particles(const Scenario &sc, const std::vector<StageSpec> &stages,
                   const std::vector<std::int64_t> &first_id,
-                  const std::vector<std::unique_ptr<MaterialInstance>> &instances) {
+                  const std::vector<std::unique_ptr<MaterialInstance>> &instances,
+                  const Comm &comm) {
     std::vector<ParticleSet> sets = make_sets(sc, columns_of(sc.solver), instances);
     const std::vector<std::size_t> first_stage = first_stage_of_groups(sc);
     for (std::size_t g = 0; g < sc.groups.size(); ++g)
         if (first_stage[g] == 0) add_group(sc, g, stages[0].conditions.gravity, first_id[g], sets);
-    select_particles(sc, stages[0].conditions, sets, "at t = 0");
+    // Every rank has every particle yet: each finds the same.
+    select_particles(sc, stages[0].conditions, sets, "at t = 0", comm);
     return sets;
 }
 
@@ -130,7 +132,7 @@ Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options, const Sn
       boundary(comm.distributed() ? Boundary() : Boundary(sc, stages[0].conditions, grid, 0.0)),
       instances(make_instances(sc)),
       sets(restore ? make_sets(sc, columns_of(sc.solver), instances)
-                   : initial_particles(sc, stages, first_id, instances)),
+                   : initial_particles(sc, stages, first_id, instances, comm)),
       order(grid.geo, sets.size()), loads(sc, stages[0].conditions, Vec3{0, 0, 0}, 0.0),
       domain(domain_of(sc, stages[0].conditions)),
       materials(names_of(sc, sets), opt.batch_size, sc.cell), variant(variant_of(sc.solver)),
@@ -143,11 +145,6 @@ Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options, const Sn
     // that rank's box back.
     const bool whole = !restore || restore->boxes.empty();
     if (comm.distributed()) {
-        // What several ranks do not do yet (docs/mpi.md, "Not yet").
-        if (stages.size() > 1)
-            fail_together(comm, fmt::format("{}: a scenario with stages does not run on several "
-                                            "ranks yet; run it on one",
-                                            sc.file));
         if (!whole) {
             if (restore->boxes.size() != static_cast<std::size_t>(comm.size()) ||
                 restore->rank != comm.rank())

@@ -138,6 +138,9 @@ struct Simulation::Impl {
     // generated particles (every rank generated them all) and keeps this
     // rank's.
     void distribute();
+    // Drops points [begin, s.n) of `s` that lie in another rank's cells
+    // (every rank generates every particle of a group).
+    void keep_own(ParticleSet &s, std::size_t begin) const;
     // The shared nodes' `fields` (Halo) summed over the ranks, after a P2G.
     void exchange(unsigned fields);
     // Particles to the rank owning their cell.

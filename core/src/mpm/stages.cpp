@@ -28,6 +28,7 @@ void Simulation::Impl::add_groups(const std::vector<std::size_t> &groups, const 
         const std::size_t set = set_of_material(sets, sc.groups[g].material);
         const std::size_t begin = sets[set].n;
         add_group(sc, g, gravity, first_id[g], sets);
+        if (comm.distributed()) keep_own(sets[set], begin);
         start_points(set, begin);
     }
 }
@@ -83,10 +84,15 @@ void Simulation::Impl::begin_stage(std::size_t k) {
     stage = k;
     stage_start = time;
     const StageSpec &st = stages[k];
-    remove_groups(st.remove);
-    for (const MaterialSwitch &sw : st.set_material)
-        switch_material(sw);
-    add_groups(st.activate, st.conditions.gravity);
+    // Each rank changes its own particles (a group appears on every rank
+    // and each keeps those in its cells); a plugin refusing a new point's
+    // state on one rank stops every rank before the collectives below.
+    together(comm, [&] {
+        remove_groups(st.remove);
+        for (const MaterialSwitch &sw : st.set_material)
+            switch_material(sw);
+        add_groups(st.activate, st.conditions.gravity);
+    });
     for (ParticleSet &s : sets)
         for (std::size_t p = 0; p < s.n; ++p) {
             for (std::size_t d = 0; d < static_cast<std::size_t>(sc.dim); ++d) {
@@ -95,11 +101,11 @@ void Simulation::Impl::begin_stage(std::size_t k) {
             }
             if (st.reset_velocity && s.has_C) std::fill_n(&s.C[9 * p], 9, 0.0);
         }
-    boundary = Boundary(sc, st.conditions, grid, time);
+    boundary = Boundary(sc, st.conditions, grid, time, comm);
     loads = Loads(sc, st.conditions, gravity_before, time);
     domain = domain_of(sc, st.conditions);
     select_particles(sc, st.conditions, sets,
-                     fmt::format("at the start of stage '{}' (t = {:.6g} s)", st.name, time));
+                     fmt::format("at the start of stage '{}' (t = {:.6g} s)", st.name, time), comm);
     order.sort(sets);
     max_speed = -1.0; // new particles, new velocities: the next step measures afresh
     arm_quiescence();
@@ -160,6 +166,11 @@ double Simulation::Impl::default_hold() const {
             }
             c = std::max(c, s.c[p]);
         }
+    if (comm.distributed()) { // the body's extent and speed over all ranks
+        comm.min(lo, 3);
+        comm.max(hi, 3);
+        c = comm.max(c);
+    }
     double extent = 0.0;
     for (int d = 0; d < sc.dim; ++d)
         extent = std::max(extent, hi[d] - lo[d] + sc.cell);
