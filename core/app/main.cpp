@@ -340,6 +340,7 @@ int main(int argc, char **argv) {
             // writes what the ranks share and the log.
             if (talus::MpiSession::launched_ranks() > 1) mpi.emplace(&argc, &argv);
             comm = talus::Comm::world();
+            if (comm.distributed()) talus::crash::set_rank(comm.rank(), comm.size());
             if (scenario_file.empty() && restart_file.empty())
                 throw talus::Error("talus run: give a scenario (SCENARIO.yaml) or --restart "
                                    "CHECKPOINT.h5");

@@ -660,9 +660,10 @@ std::string write_replay_case(const Simulation &sim, const fs::path &dir) noexce
 // crash, best effort (the heap may be what the plugin broke).
 void write_state_after_crash(void *context) {
     auto *out = static_cast<RunOutput *>(context);
-    const std::string where = out->write_failure(/*all_ranks=*/false);
-    ::write(STDERR_FILENO, where.data() + 1, where.size() - 1);
-    ::write(STDERR_FILENO, " (best effort after a crash)\n", 29);
+    // One write: the lines of several ranks do not interleave.
+    const std::string where =
+        out->write_failure(/*all_ranks=*/false).substr(1) + " (best effort after a crash)\n";
+    ::write(STDERR_FILENO, where.data(), where.size());
 }
 
 struct ClearLastAction {

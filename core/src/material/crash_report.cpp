@@ -16,16 +16,31 @@ std::atomic<LastAction> g_action{nullptr};
 std::atomic<void *> g_action_context{nullptr};
 std::atomic<int> g_entered{0};
 
-// Async-signal-safe output: write(2) only, no formatting library.
+std::atomic<int> g_rank{-1}, g_ranks{0};
+
+// Async-signal-safe output: the message is built in a static buffer and
+// written by write(2) at once (flush), so that the reports of several
+// ranks crashing together do not interleave (a write of up to PIPE_BUF
+// bytes to a pipe is not split). No formatting library.
+char g_text[4096];
+std::size_t g_used = 0;
+
 void put(const char *s) {
     if (!s) s = "?";
-    std::size_t n = std::strlen(s);
+    for (; *s && g_used < sizeof g_text; ++s)
+        g_text[g_used++] = *s;
+}
+
+void flush() {
+    const char *s = g_text;
+    std::size_t n = g_used;
     while (n > 0) {
         const ssize_t w = ::write(STDERR_FILENO, s, n);
-        if (w <= 0) return;
+        if (w <= 0) break;
         s += w;
         n -= static_cast<std::size_t>(w);
     }
+    g_used = 0;
 }
 
 void put_int(long long v) {
@@ -54,8 +69,21 @@ const char *signal_text(int sig) {
     }
 }
 
+void put_who() {
+    put("talus: ");
+    if (g_ranks.load() > 1) {
+        put("rank ");
+        put_int(g_rank.load());
+        put(" of ");
+        put_int(g_ranks.load());
+        put(": ");
+    }
+}
+
 void on_alarm(int) {
-    put("talus: the state could not be written in time after the crash\n");
+    put_who();
+    put("the state could not be written in time after the crash\n");
+    flush();
     ::_exit(128 + SIGALRM);
 }
 
@@ -65,7 +93,8 @@ void on_fatal(int sig) {
         // last action. Do not report twice.
         ::_exit(128 + sig);
     }
-    put("talus: fatal: signal ");
+    put_who();
+    put("fatal: signal ");
     put_int(sig);
     put(" (");
     put(signal_text(sig));
@@ -105,6 +134,7 @@ void on_fatal(int sig) {
         put(" in talus itself, outside any plugin call. This is a bug in Talus; please report "
             "it with the scenario.\n");
     }
+    flush();
     if (LastAction a = g_action.load()) {
         std::signal(SIGALRM, on_alarm);
         ::alarm(60);
@@ -140,6 +170,11 @@ void install_handlers() {
     sa.sa_flags = SA_ONSTACK | SA_NODEFER;
     for (int sig : {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT})
         ::sigaction(sig, &sa, nullptr);
+}
+
+void set_rank(int rank, int ranks) noexcept {
+    g_rank.store(rank);
+    g_ranks.store(ranks);
 }
 
 void set_last_action(LastAction action, void *context) noexcept {

@@ -50,6 +50,9 @@ class TaskScope {
 // Installs the fatal-signal handlers (process-wide; once is enough).
 void install_handlers();
 
+// On several MPI ranks: the report begins "talus: rank R of N:".
+void set_rank(int rank, int ranks) noexcept;
+
 // The one thing to try after the report, e.g. writing the state. It runs
 // inside the signal handler, so it may fail or hang: it gets a time limit,
 // and a second fault inside it ends the process at once. nullptr clears it.
