@@ -20,6 +20,9 @@ mpirun, checked against the same scenario run on one rank without MPI:
    run's checkpoint in the second stage, continued on 3 ranks, gives every
    output file byte for byte, and on 2 ranks to round-off. stages.csv is
    compared as the other CSV files.
+5. The one-rank run's checkpoint in the second stage continued on 3 ranks
+   (one file for three ranks: rank 0 reads it, the particles go to their
+   cells' ranks) equals the one-rank run to round-off.
 
 Round-off: the runs differ only in the order in which each shared node's
 terms are added (and, after a restart on another number of ranks, the
@@ -309,6 +312,22 @@ def main():
             for name in ("diagnostics.csv", "probes.csv", "stages.csv"):
                 csv_close(rows(three, name), rows(folder, name), steps,
                           f"{name}, restarted in the last stage on 2 ranks against 3")
+
+    # 5. The one-rank run's second-last checkpoint on 3 ranks: one file,
+    # read by rank 0 alone, its particles sent to the other ranks' cells.
+    late = sorted(glob.glob(os.path.join(one, "checkpoints", "checkpoint_*.h5")))
+    folder = os.path.join(work, "one_on_3")
+    shutil.copytree(one, folder)
+    cp = os.path.join(folder, "checkpoints", os.path.basename(late[0]))
+    must(mpi(mpiexec, 3) + [talus, "run", "--restart", cp], os.path.join(work, "one_on_3.log"))
+    fr = frames(folder)
+    if not fr[-1][1].endswith(".pvtu"):
+        fail(f"the one-rank checkpoint continued on 3 ranks wrote {fr[-1][1]}")
+    close(read(one, f1[-1][1]), read(folder, fr[-1][1]), steps,
+          "the one-rank checkpoint continued on 3 ranks against one rank")
+    for name in ("diagnostics.csv", "probes.csv", "stages.csv"):
+        csv_close(rows(one, name), rows(folder, name), steps,
+                  f"{name}, the one-rank checkpoint continued on 3 ranks against one rank")
     print("all checks passed")
 
 

@@ -587,16 +587,38 @@ Checkpoint read_checkpoint_for(const fs::path &file, int rank, int ranks) {
         if (rank != 0) c.state = part(rank).state;
         return c;
     }
-    // Another number of ranks: every particle, in rank order. The
-    // ordering marks are dropped (the solver orders anew); the cut steps
-    // each rank counted are summed.
+    // Another number of ranks: this rank reads its share of the files
+    // (a contiguous run of them; none when there are fewer files than
+    // ranks), so that no rank holds every particle; the solver sends the
+    // particles to their cells' ranks. The ordering marks are dropped (the
+    // solver orders anew); the cut steps of the files read are summed (the
+    // run's count is the sum over the ranks).
+    for (int r = 1; r < written; ++r) // every file there, whoever reads it
+        if (!fs::exists(rank_checkpoint_file(file, r)))
+            throw Error(fmt::format("{}: missing: the checkpoint {} was written by {} ranks, each "
+                                    "into its own file",
+                                    rank_checkpoint_file(file, r).string(), file.string(),
+                                    written));
+    // File f goes to rank f ranks / written: files [lo, hi) here.
+    const auto first_file = [&](long r) {
+        return static_cast<int>((r * written + ranks - 1) / ranks);
+    };
+    const int lo = first_file(rank), hi = first_file(rank + 1);
+    const bool reads_first = lo == 0 && hi > 0;
     Snapshot all = std::move(c.state);
     all.rank = 0;
     all.boxes.clear();
-    for (Snapshot::Set &set : all.sets)
+    for (Snapshot::Set &set : all.sets) {
         set.slab_of.clear();
+        if (!reads_first) { // rank 0's particles are another rank's share
+            set.n = 0;
+            for (Snapshot::Column &col : set.columns)
+                col.bytes.clear();
+        }
+    }
+    if (!reads_first) all.cut_steps = 0;
     all.slabs_changed = true;
-    for (int r = 1; r < written; ++r) {
+    for (int r = std::max(lo, 1); r < hi; ++r) {
         const Snapshot s = part(r).state;
         all.cut_steps += s.cut_steps;
         for (std::size_t k = 0; k < all.sets.size(); ++k) {

@@ -8,14 +8,17 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <numeric>
+
 namespace talus {
 
 namespace {
 
-// The particles of `sets` per cell plane of `box` across `axis` (the
-// bisection's weights).
-std::vector<double> plane_counts(const std::vector<ParticleSet> &sets, const GridGeometry &geo,
-                                 const CellBox &box, int axis) {
+// The particles of `sets` per cell plane of `box` across `axis`, summed
+// over the ranks (the bisection's weights; collective).
+std::vector<double> plane_counts(const Comm &comm, const std::vector<ParticleSet> &sets,
+                                 const GridGeometry &geo, const CellBox &box, int axis) {
     const std::size_t a = static_cast<std::size_t>(axis);
     std::vector<double> w(static_cast<std::size_t>(box.hi[a] - box.lo[a]), 0.0);
     for (const ParticleSet &s : sets)
@@ -23,32 +26,67 @@ std::vector<double> plane_counts(const std::vector<ParticleSet> &sets, const Gri
             const std::array<int, 3> c = particle_cell(geo, s, p);
             if (box.contains(c)) w[static_cast<std::size_t>(c[a] - box.lo[a])] += 1.0;
         }
+    comm.sum(w.data(), w.size());
     return w;
+}
+
+// Puts points [begin, s.n) of `s` in ascending id order, each moved once
+// along the cycles of the permutation through a scratch point at the end.
+void sort_by_id(ParticleSet &s, std::size_t begin) {
+    const std::size_t n = s.n;
+    std::vector<std::size_t> from(n - begin);
+    std::iota(from.begin(), from.end(), begin);
+    std::sort(from.begin(), from.end(),
+              [&](std::size_t a, std::size_t b) { return s.id[a] < s.id[b]; });
+    s.resize(n + 1);
+    std::vector<char> done(n - begin, 0);
+    for (std::size_t i = begin; i < n; ++i) {
+        if (done[i - begin] || from[i - begin] == i) continue;
+        s.move(i, n);
+        std::size_t j = i;
+        while (from[j - begin] != i) {
+            s.move(from[j - begin], j);
+            done[j - begin] = 1;
+            j = from[j - begin];
+        }
+        s.move(n, j);
+        done[j - begin] = 1;
+    }
+    s.resize(n);
 }
 
 } // namespace
 
 void Simulation::Impl::distribute() {
-    // Every rank generated every particle (the same ones, in the same
-    // order): the weights are global without a message.
+    // Each rank holds a share of the particles (its rows of each group's
+    // lattice, or its part of a snapshot's): the cells are split by the
+    // counts summed over the ranks, and the particles go to their cells'
+    // ranks.
+    std::size_t held = 0;
+    for (const ParticleSet &s : sets)
+        held += s.n;
+    traffic.largest_share = std::max(traffic.largest_share, held);
     const GridGeometry &geo = grid.geo;
-    auto weight = [&](const CellBox &box, int axis) { return plane_counts(sets, geo, box, axis); };
+    auto weight = [&](const CellBox &box, int axis) {
+        return plane_counts(comm, sets, geo, box, axis);
+    };
     try { // the same weights on every rank: the same outcome
         decomp = Decomposition::bisect(sc.dim, geo.cells, comm.size(), weight);
     } catch (const Error &e) {
         fail_together(comm, e.what());
     }
+    talus::migrate(comm, decomp, decomp.neighbours(comm.rank(), kGhostLayers), geo, sets);
     take_box();
+    // In id order (generation order), however the particles were shared.
     for (ParticleSet &s : sets)
-        keep_own(s, 0);
+        sort_by_id(s, 0);
 }
 
-// The kept points stay in generation order.
-void Simulation::Impl::keep_own(ParticleSet &s, std::size_t begin) const {
-    std::size_t keep = begin;
-    for (std::size_t p = begin; p < s.n; ++p)
-        if (decomp.owner(particle_cell(grid.geo, s, p)) == comm.rank()) s.move(p, keep++);
-    s.resize(keep);
+void Simulation::Impl::arrive(std::size_t set, std::size_t begin) {
+    traffic.largest_share = std::max(traffic.largest_share, sets[set].n - begin);
+    talus::migrate(comm, decomp, halo.neighbours(), grid.geo, sets);
+    order.invalidate(); // indices moved
+    sort_by_id(sets[set], begin);
 }
 
 void Simulation::Impl::take_box() {
@@ -57,6 +95,10 @@ void Simulation::Impl::take_box() {
     boundary = Boundary(sc, conditions(), grid, stage_start, comm);
     order = Ordering(grid.geo, sets.size());
     halo = Halo(decomp, comm.rank(), grid.geo, kGhostLayers);
+    if (sc.solver.cell_averaged_dilation) { // sized for this rank's cells
+        dilation.div.assign(grid.n_cells, 0.0);
+        dilation.vol.assign(grid.n_cells, 0.0);
+    }
     traffic.shared_nodes = halo.shared_nodes();
     traffic.neighbours = static_cast<int>(halo.neighbours().size());
 }
@@ -73,9 +115,7 @@ void Simulation::Impl::rebalance_if_uneven() {
     // Each rank counts its own particles per plane; the sum is global.
     const GridGeometry &geo = grid.geo;
     auto weight = [&](const CellBox &box, int axis) {
-        std::vector<double> w = plane_counts(sets, geo, box, axis);
-        comm.sum(w.data(), w.size());
-        return w;
+        return plane_counts(comm, sets, geo, box, axis);
     };
     Decomposition next = Decomposition::bisect(sc.dim, geo.cells, comm.size(), weight);
     bool same = true;

@@ -23,6 +23,17 @@ std::size_t GridGeometry::cell_index(const double *x) const {
     return idx;
 }
 
+std::size_t GridGeometry::owned_cell_index(const double *x) const {
+    std::size_t idx = 0, stride = 1;
+    for (int d = 0; d < dim; ++d) {
+        const std::size_t a = static_cast<std::size_t>(d);
+        const int lo = first[a] + kGhostLayers, n = extent[a] - 1 - 2 * kGhostLayers;
+        idx += static_cast<std::size_t>(std::clamp(cell(d, x[d]) - lo, 0, n - 1)) * stride;
+        stride *= static_cast<std::size_t>(n);
+    }
+    return idx;
+}
+
 Grid::Grid(int dim, const std::array<double, 3> &origin, const std::array<double, 3> &size,
            double h, ShapeKind shape)
     : Grid(dim, origin, size, h, shape, {0, 0, 0}, {-1, -1, -1}) {}
@@ -50,7 +61,8 @@ Grid::Grid(int dim, const std::array<double, 3> &origin, const std::array<double
             geo.extent[d] = 1;
         }
         n_nodes *= static_cast<std::size_t>(geo.extent[d]);
-        n_cells *= static_cast<std::size_t>(geo.cells[d]);
+        if (static_cast<int>(d) < dim)
+            n_cells *= static_cast<std::size_t>(geo.extent[d] - 1 - 2 * kGhostLayers);
     }
     acc.assign(node::kRecord * n_nodes, 0.0);
     vel.assign(node::kRecord * n_nodes, 0.0);

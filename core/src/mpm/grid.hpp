@@ -62,6 +62,9 @@ struct GridGeometry {
     }
     // Cell number (in the domain's cell order) of a position.
     std::size_t cell_index(const double *x) const;
+    // Cell number among the cells this grid's rank owns (its box, in the
+    // same order; the domain's on one rank), clamped into the box.
+    std::size_t owned_cell_index(const double *x) const;
 };
 
 // Storage for node records starting on a cache-line boundary: a record of
@@ -82,8 +85,9 @@ using NodeRecords = std::vector<double, CacheLineAllocator<double>>;
 
 struct Grid {
     GridGeometry geo;
-    std::size_t n_nodes = 0, n_cells = 0;
-    NodeRecords acc, vel; // node records, see node::
+    std::size_t n_nodes = 0; // held: the owned cells' nodes and the ghost layers
+    std::size_t n_cells = 0; // owned (owned_cell_index)
+    NodeRecords acc, vel;    // node records, see node::
     // Local slots of the nodes on or beyond each face (x-, x+, y-, y+, z-,
     // z+) that carry the face's condition (face_layer of the kernel).
     std::array<std::vector<std::uint32_t>, 6> face_nodes;

@@ -124,7 +124,7 @@ struct DilationCells {
 
 inline std::size_t cell_of(const GridGeometry &geo, const ParticleSet &s, std::size_t p) {
     const double x[3] = {s.x[0][p], s.x[1][p], geo.dim == 3 ? s.x[2][p] : 0.0};
-    return geo.cell_index(x);
+    return geo.owned_cell_index(x);
 }
 
 // The first part of cell-averaged dilation: every point's J at the end of

@@ -32,52 +32,69 @@ ParticleSet new_set(const Scenario &sc, std::size_t material, ColumnsInUse colum
     return s;
 }
 
-// The lattice points inside a group's shape: ppc per direction per cell,
-// at the centres of the sub-cells.
-std::vector<std::array<double, 3>> lattice_points(const Scenario &sc, const GroupSpec &gs) {
+// A group's lattice: ppc points per direction per cell at the centres of
+// the sub-cells, over its shape's bounding box and one spacing more. Its
+// points are numbered row by row (a row: the points along x at one y and
+// z), which is the order of the group's particle ids.
+struct Lattice {
+    std::array<int, 3> lo{0, 0, 0}, hi{0, 1, 1}; // point indices [lo, hi)
+    double sub = 0.0;                            // spacing
+    std::size_t rows() const {
+        return static_cast<std::size_t>(hi[1] - lo[1]) * static_cast<std::size_t>(hi[2] - lo[2]);
+    }
+};
+
+Lattice lattice_of(const Scenario &sc, const GroupSpec &gs) {
     const int D = sc.dim;
     const Box bb = gs.shape.bounds(D);
-    const double sub = sc.cell / gs.particles_per_cell;
+    Lattice lat;
+    lat.sub = sc.cell / gs.particles_per_cell;
     // A shape reaching more than one lattice spacing past the grid is
     // refused before the search: the search would run over the lattice far
     // beyond the grid (for a shape placed far away, with indices past the
-    // range of an int). Within that band the search below finds any
-    // particle outside the grid.
+    // range of an int). Within that band the search finds any particle
+    // outside the grid.
     for (std::size_t d = 0; d < static_cast<std::size_t>(D); ++d) {
         const double g0 = sc.origin[d], g1 = sc.origin[d] + sc.size[d];
-        if (!(bb.min[d] >= g0 - sub && bb.max[d] <= g1 + sub))
+        if (!(bb.min[d] >= g0 - lat.sub && bb.max[d] <= g1 + lat.sub))
             throw Error(gs.shape_origin.error(fmt::format(
                 "group '{}' reaches outside the grid: its shape spans [{}, {}] m in {}, "
                 "the grid [{}, {}] m; enlarge grid.size or move the shape",
                 gs.name, bb.min[d], bb.max[d], "xyz"[d], g0, g1)));
     }
-    std::array<int, 3> lo{0, 0, 0}, hi{0, 1, 1};
     for (std::size_t d = 0; d < static_cast<std::size_t>(D); ++d) {
-        lo[d] = static_cast<int>(std::floor((bb.min[d] - sc.origin[d]) / sub)) - 1;
-        hi[d] = static_cast<int>(std::ceil((bb.max[d] - sc.origin[d]) / sub)) + 1;
+        lat.lo[d] = static_cast<int>(std::floor((bb.min[d] - sc.origin[d]) / lat.sub)) - 1;
+        lat.hi[d] = static_cast<int>(std::ceil((bb.max[d] - sc.origin[d]) / lat.sub)) + 1;
     }
-    std::vector<std::array<double, 3>> points;
-    for (int k = lo[2]; k < hi[2]; ++k)
-        for (int j = lo[1]; j < hi[1]; ++j)
-            for (int i = lo[0]; i < hi[0]; ++i) {
-                const std::array<double, 3> x = {sc.origin[0] + (i + 0.5) * sub,
-                                                 sc.origin[1] + (j + 0.5) * sub,
-                                                 D == 3 ? sc.origin[2] + (k + 0.5) * sub : 0.0};
-                if (!gs.shape.contains(x.data(), D)) continue;
-                for (std::size_t d = 0; d < static_cast<std::size_t>(D); ++d)
-                    if (x[d] < sc.origin[d] || x[d] > sc.origin[d] + sc.size[d])
-                        throw Error(gs.shape_origin.error(fmt::format(
-                            "group '{}' has particles outside the grid (at {} = {:.6g} m; the "
-                            "grid spans [{:.6g}, {:.6g}] m); enlarge grid.size or move the shape",
-                            gs.name, "xyz"[d], x[d], sc.origin[d], sc.origin[d] + sc.size[d])));
-                points.push_back(x);
-            }
-    if (points.empty())
-        throw Error(gs.shape_origin.error(
-            fmt::format("group '{}' contains no particle: its shape holds no point of the "
-                        "{}-per-cell lattice (make it larger or raise particles_per_cell)",
-                        gs.name, gs.particles_per_cell)));
-    return points;
+    return lat;
+}
+
+// Calls f(x) for each point of the shape in part `part` of `parts` of the
+// lattice's rows (a contiguous run of rows, in id order). Throws for a
+// point of the shape outside the grid.
+template <class F>
+void for_each_point(const Scenario &sc, const GroupSpec &gs, const Lattice &lat, int part,
+                    int parts, F &&f) {
+    const int D = sc.dim;
+    const std::size_t rows = lat.rows(), ny = static_cast<std::size_t>(lat.hi[1] - lat.lo[1]);
+    const std::size_t P = static_cast<std::size_t>(parts), r = static_cast<std::size_t>(part);
+    for (std::size_t row = rows * r / P; row < rows * (r + 1) / P; ++row) {
+        const int j = lat.lo[1] + static_cast<int>(row % ny);
+        const int k = lat.lo[2] + static_cast<int>(row / ny);
+        for (int i = lat.lo[0]; i < lat.hi[0]; ++i) {
+            const std::array<double, 3> x = {sc.origin[0] + (i + 0.5) * lat.sub,
+                                             sc.origin[1] + (j + 0.5) * lat.sub,
+                                             D == 3 ? sc.origin[2] + (k + 0.5) * lat.sub : 0.0};
+            if (!gs.shape.contains(x.data(), D)) continue;
+            for (std::size_t d = 0; d < static_cast<std::size_t>(D); ++d)
+                if (x[d] < sc.origin[d] || x[d] > sc.origin[d] + sc.size[d])
+                    throw Error(gs.shape_origin.error(fmt::format(
+                        "group '{}' has particles outside the grid (at {} = {:.6g} m; the "
+                        "grid spans [{:.6g}, {:.6g}] m); enlarge grid.size or move the shape",
+                        gs.name, "xyz"[d], x[d], sc.origin[d], sc.origin[d] + sc.size[d])));
+            f(x);
+        }
+    }
 }
 
 // "(x, y)" or "(x, y, z)", for messages.
@@ -187,18 +204,44 @@ std::size_t set_of_material(const std::vector<ParticleSet> &sets, std::size_t ma
     throw std::logic_error("no particle set for a material in use");
 }
 
-std::vector<std::int64_t> first_ids(const Scenario &sc) {
-    std::vector<std::int64_t> first;
+GroupIds group_ids(const Scenario &sc, const Comm &comm) {
+    const std::size_t G = sc.groups.size(), P = static_cast<std::size_t>(comm.size());
+    const std::size_t me = static_cast<std::size_t>(comm.rank());
+    // counts[g P + r]: group g's particles in rank r's rows.
+    std::vector<long> counts(G * P, 0);
+    together(comm, [&] {
+        for (std::size_t g = 0; g < G; ++g) {
+            const GroupSpec &gs = sc.groups[g];
+            long n = 0;
+            for_each_point(sc, gs, lattice_of(sc, gs), comm.rank(), comm.size(),
+                           [&](const std::array<double, 3> &) { ++n; });
+            counts[g * P + me] = n;
+        }
+    });
+    comm.sum(counts.data(), counts.size());
+    GroupIds ids;
     std::int64_t next = 0;
-    for (const GroupSpec &gs : sc.groups) {
-        first.push_back(next);
-        next += static_cast<std::int64_t>(lattice_points(sc, gs).size());
+    for (std::size_t g = 0; g < G; ++g) {
+        const GroupSpec &gs = sc.groups[g];
+        ids.first.push_back(next);
+        std::int64_t mine = next;
+        for (std::size_t r = 0; r < P; ++r) {
+            if (r == me) mine = next;
+            next += counts[g * P + r];
+        }
+        ids.share_first.push_back(mine);
+        if (next == ids.first.back())
+            fail_together(comm, gs.shape_origin.error(fmt::format(
+                                    "group '{}' contains no particle: its shape holds no point "
+                                    "of the {}-per-cell lattice (make it larger or raise "
+                                    "particles_per_cell)",
+                                    gs.name, gs.particles_per_cell)));
     }
-    return first;
+    return ids;
 }
 
 void add_group(const Scenario &sc, std::size_t gi, const Vec3 &gravity, std::int64_t first_id,
-               std::vector<ParticleSet> &sets) {
+               std::vector<ParticleSet> &sets, const Comm &comm) {
     const GroupSpec &gs = sc.groups[gi];
     const std::size_t up = static_cast<std::size_t>(sc.dim - 1);
     if (gs.stress.kind == InitialStress::Kind::geostatic && !(gravity[up] < 0.0))
@@ -207,7 +250,9 @@ void add_group(const Scenario &sc, std::size_t gi, const Vec3 &gravity, std::int
                         "axis ({}) when the group appears, got {:g} m/s^2 (set gravity:)",
                         sc.dim == 2 ? "y" : "z", gravity[up])));
     ParticleSet &s = sets[set_of_material(sets, gs.material)];
-    const std::vector<std::array<double, 3>> points = lattice_points(sc, gs);
+    std::vector<std::array<double, 3>> points;
+    for_each_point(sc, gs, lattice_of(sc, gs), comm.rank(), comm.size(),
+                   [&](const std::array<double, 3> &x) { points.push_back(x); });
     const std::vector<double> &q_init = sc.materials[gs.material].spec.initial_state;
     const Box bb = gs.shape.bounds(sc.dim);
     const std::size_t first = s.n;

@@ -26,17 +26,26 @@ std::vector<ParticleSet> make_sets(const Scenario &sc, ColumnsInUse columns,
 // The set holding `material`'s particles.
 std::size_t set_of_material(const std::vector<ParticleSet> &sets, std::size_t material);
 
-// The id of each group's first particle: the groups' particles take
-// consecutive ids in the file's order, whether present from the start or
-// appearing in a later stage. Throws, at the group's place in the file,
-// for a group with no particle or with particles outside the grid.
-std::vector<std::int64_t> first_ids(const Scenario &sc);
+// The groups' particle ids: consecutive in the file's order of the groups,
+// whether present from the start or appearing in a later stage, and within
+// a group row by row through its lattice. On several ranks each rank
+// generates a share of every group's rows (a contiguous run, in id order;
+// collective), so that no rank holds every particle.
+struct GroupIds {
+    std::vector<std::int64_t> first;       // per group: the id of its first particle
+    std::vector<std::int64_t> share_first; // per group: that of this rank's share
+};
+// Throws, at the group's place in the file, for a group with no particle
+// or with particles outside the grid (on several ranks, on every rank).
+GroupIds group_ids(const Scenario &sc, const Comm &comm = Comm::serial());
 
-// Adds group gi's particles, at their initial state, to the set of its
-// material; a geostatic initial stress is that of `gravity`, the gravity
-// of the stage the group appears in (refused unless it points down).
+// Adds this rank's share of group gi's particles (all of them on one
+// rank), at their initial state, to the set of its material, with ids
+// from `first_id` (GroupIds::share_first); a geostatic initial stress is
+// that of `gravity`, the gravity of the stage the group appears in
+// (refused unless it points down).
 void add_group(const Scenario &sc, std::size_t gi, const Vec3 &gravity, std::int64_t first_id,
-               std::vector<ParticleSet> &sets);
+               std::vector<ParticleSet> &sets, const Comm &comm = Comm::serial());
 
 // Which loads and fixities of a stage's conditions act on each particle,
 // by its group and current position (the load and fixity masks). Throws,

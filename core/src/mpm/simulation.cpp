@@ -82,8 +82,9 @@ std::vector<std::unique_ptr<MaterialInstance>> make_instances(const Scenario &sc
     return out;
 }
 
-// The particles at t = 0: the groups present from the start, with the
-// first stage's loads and fixities selected.
+// The particles at t = 0 (this rank's share on several ranks): the groups
+// present from the start, with the first stage's loads and fixities
+// selected.
 std::vector<ParticleSet>
 initial_particles(const Scenario &sc, const std::vector<StageSpec> &stages,
                   const std::vector<std::int64_t> &first_id,
@@ -92,8 +93,8 @@ initial_particles(const Scenario &sc, const std::vector<StageSpec> &stages,
     std::vector<ParticleSet> sets = make_sets(sc, columns_of(sc.solver), instances);
     const std::vector<std::size_t> first_stage = first_stage_of_groups(sc);
     for (std::size_t g = 0; g < sc.groups.size(); ++g)
-        if (first_stage[g] == 0) add_group(sc, g, stages[0].conditions.gravity, first_id[g], sets);
-    // Every rank has every particle yet: each finds the same.
+        if (first_stage[g] == 0)
+            add_group(sc, g, stages[0].conditions.gravity, first_id[g], sets, comm);
     select_particles(sc, stages[0].conditions, sets, "at t = 0", comm);
     return sets;
 }
@@ -128,7 +129,8 @@ Domain domain_of(const Scenario &sc, const Conditions &c) {
 
 Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options, const Snapshot *restore)
     : sc(checked(scenario)), opt(options), comm(opt.comm), decomp(sc.dim, domain_cells(sc)),
-      stages(stages_of(sc)), first_id(first_ids(sc)), grid(initial_grid(sc, comm)),
+      stages(stages_of(sc)), first_id(group_ids(sc, comm).share_first),
+      grid(initial_grid(sc, comm)),
       boundary(comm.distributed() ? Boundary() : Boundary(sc, stages[0].conditions, grid, 0.0)),
       instances(make_instances(sc)),
       sets(restore ? make_sets(sc, columns_of(sc.solver), instances)
@@ -139,8 +141,8 @@ Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options, const Sn
       isa(talus::kernel_isa()), velocity_motion(velocity_motion_of(sc.solver)) {
     for (const GroupSpec &g : sc.groups)
         group_names.push_back(g.name);
-    // A snapshot of every particle (one rank's, or several ranks' read on
-    // another number of ranks) is spread over the ranks like generated
+    // A snapshot read on another number of ranks than wrote it (this
+    // rank's share of its files) is spread over the ranks like generated
     // particles; one of this rank's part of a run on as many ranks takes
     // that rank's box back.
     const bool whole = !restore || restore->boxes.empty();
@@ -182,10 +184,10 @@ Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options, const Sn
         }
         agree(error);
         if (comm.distributed() && whole) {
+            // This rank's share of the snapshot's particles (its files'
+            // share, read_checkpoint_for) to their cells' ranks; its cut
+            // steps are its files', and the run's count is the sum.
             distribute(); // this rank's box, boundary and a new particle order
-            // Each rank's plugins count their own cut steps; the whole
-            // count stays with rank 0.
-            if (comm.rank() != 0) materials.set_cut_steps(0);
             order.sort(sets);
         }
         return;

@@ -67,7 +67,7 @@ struct Simulation::Impl {
     Halo halo;
     RankTraffic traffic;
     std::vector<StageSpec> stages;      // stages_of(sc)
-    std::vector<std::int64_t> first_id; // per group: the id of its first particle
+    std::vector<std::int64_t> first_id; // per group: the id of this rank's share's first particle
     std::size_t stage = 0;
     double stage_start = 0.0;
     Vec3 gravity_before{0, 0, 0}; // the current stage's gravity ramp starts there
@@ -135,12 +135,14 @@ struct Simulation::Impl {
     void step_ended(const StepEnd &end);
 
     // Several ranks (docs/mpi.md). Splits the cells among the ranks by the
-    // generated particles (every rank generated them all) and keeps this
-    // rank's.
+    // particles each holds (a share of the generated ones, or of a
+    // snapshot's), sends them to their cells' ranks and puts each set in
+    // id order.
     void distribute();
-    // Drops points [begin, s.n) of `s` that lie in another rank's cells
-    // (every rank generates every particle of a group).
-    void keep_own(ParticleSet &s, std::size_t begin) const;
+    // Points [begin, n) of set `set`, just generated (this rank's share of a
+    // new group), go to their cells' ranks and arrive in id order at
+    // [begin, n) (collective; the other particles are in their cells).
+    void arrive(std::size_t set, std::size_t begin);
     // The shared nodes' `fields` (Halo) summed over the ranks, after a P2G.
     void exchange(unsigned fields);
     // Particles to the rank owning their cell.

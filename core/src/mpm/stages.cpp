@@ -23,13 +23,16 @@ void Simulation::Impl::start_points(std::size_t set, std::size_t begin) {
     if (const MaterialFailure *f = failures.material.first()) material_failed(*f, 0);
 }
 
+// On several ranks each generates its share of a group's rows (as at the
+// start), and the particles go to their cells' ranks before their set-up
+// call.
 void Simulation::Impl::add_groups(const std::vector<std::size_t> &groups, const Vec3 &gravity) {
     for (std::size_t g : groups) {
         const std::size_t set = set_of_material(sets, sc.groups[g].material);
         const std::size_t begin = sets[set].n;
-        add_group(sc, g, gravity, first_id[g], sets);
-        if (comm.distributed()) keep_own(sets[set], begin);
-        start_points(set, begin);
+        together(comm, [&] { add_group(sc, g, gravity, first_id[g], sets, comm); });
+        if (comm.distributed()) arrive(set, begin);
+        together(comm, [&] { start_points(set, begin); });
     }
 }
 
@@ -84,15 +87,14 @@ void Simulation::Impl::begin_stage(std::size_t k) {
     stage = k;
     stage_start = time;
     const StageSpec &st = stages[k];
-    // Each rank changes its own particles (a group appears on every rank
-    // and each keeps those in its cells); a plugin refusing a new point's
-    // state on one rank stops every rank before the collectives below.
+    // Each rank changes its own particles; a plugin refusing a point's
+    // state on one rank stops every rank before the next collective.
     together(comm, [&] {
         remove_groups(st.remove);
         for (const MaterialSwitch &sw : st.set_material)
             switch_material(sw);
-        add_groups(st.activate, st.conditions.gravity);
     });
+    add_groups(st.activate, st.conditions.gravity);
     for (ParticleSet &s : sets)
         for (std::size_t p = 0; p < s.n; ++p) {
             for (std::size_t d = 0; d < static_cast<std::size_t>(sc.dim); ++d) {

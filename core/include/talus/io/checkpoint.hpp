@@ -78,9 +78,10 @@ std::filesystem::path rank_checkpoint_file(const std::filesystem::path &file, in
 
 // The checkpoint `file` (rank 0's) as rank `rank` of a run on `ranks`
 // continues it: written by as many ranks, that rank's own part; by another
-// number, every rank's particles together (Snapshot::boxes empty: the
-// solver spreads them anew). Throws talus::Error when a rank's file is
-// missing or from another step or run.
+// number, the particles of this rank's share of the files (a contiguous
+// run of them, rank 0 of 1 reading all; Snapshot::boxes empty: the solver
+// sends them to their cells' ranks). Throws talus::Error when a rank's
+// file is missing or from another step or run.
 Checkpoint read_checkpoint_for(const std::filesystem::path &file, int rank, int ranks);
 
 } // namespace talus

@@ -71,6 +71,10 @@ struct RankTraffic {
     long rebalances = 0;
     std::size_t shared_nodes = 0; // nodes this rank holds with others
     int neighbours = 0;
+    // The most particles this rank held before sending them to their
+    // cells' ranks: its share of the generated (or restored) particles at
+    // the start, of a group's when a stage adds it. No rank holds them all.
+    std::size_t largest_share = 0;
 };
 
 // One plugin call that failed, as the plugin received it (ABI conventions:
