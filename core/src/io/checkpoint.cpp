@@ -569,13 +569,18 @@ Checkpoint read_checkpoint_for(const fs::path &file, int rank, int ranks) {
             (file.parent_path() / (stem.substr(0, stem.rfind(".rank")) + ".h5")).string()));
     }
     const int written = std::max<int>(1, static_cast<int>(first.boxes.size()));
-    // Another rank's file of the same run and step.
-    auto part = [&](int r) {
-        const fs::path f = rank_checkpoint_file(file, r);
+    // Rank r's file, there.
+    auto existing = [&](int r) {
+        fs::path f = rank_checkpoint_file(file, r);
         if (!fs::exists(f))
             throw Error(fmt::format("{}: missing: the checkpoint {} was written by {} ranks, each "
                                     "into its own file",
                                     f.string(), file.string(), written));
+        return f;
+    };
+    // Another rank's file of the same run and step.
+    auto part = [&](int r) {
+        const fs::path f = existing(r);
         Checkpoint k = read_checkpoint(f);
         if (k.state.step != first.step || k.state.rank != r || k.state.boxes != first.boxes ||
             k.scenario_sha256 != c.scenario_sha256 || k.state.sets.size() != first.sets)
@@ -594,11 +599,7 @@ Checkpoint read_checkpoint_for(const fs::path &file, int rank, int ranks) {
     // solver orders anew); the cut steps of the files read are summed (the
     // run's count is the sum over the ranks).
     for (int r = 1; r < written; ++r) // every file there, whoever reads it
-        if (!fs::exists(rank_checkpoint_file(file, r)))
-            throw Error(fmt::format("{}: missing: the checkpoint {} was written by {} ranks, each "
-                                    "into its own file",
-                                    rank_checkpoint_file(file, r).string(), file.string(),
-                                    written));
+        existing(r);
     // File f goes to rank f ranks / written: files [lo, hi) here.
     const auto first_file = [&](long r) {
         return static_cast<int>((r * written + ranks - 1) / ranks);

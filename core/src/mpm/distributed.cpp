@@ -30,29 +30,13 @@ std::vector<double> plane_counts(const Comm &comm, const std::vector<ParticleSet
     return w;
 }
 
-// Puts points [begin, s.n) of `s` in ascending id order, each moved once
-// along the cycles of the permutation through a scratch point at the end.
+// Puts points [begin, s.n) of `s` in ascending id order.
 void sort_by_id(ParticleSet &s, std::size_t begin) {
-    const std::size_t n = s.n;
-    std::vector<std::size_t> from(n - begin);
-    std::iota(from.begin(), from.end(), begin);
-    std::sort(from.begin(), from.end(),
-              [&](std::size_t a, std::size_t b) { return s.id[a] < s.id[b]; });
-    s.resize(n + 1);
-    std::vector<char> done(n - begin, 0);
-    for (std::size_t i = begin; i < n; ++i) {
-        if (done[i - begin] || from[i - begin] == i) continue;
-        s.move(i, n);
-        std::size_t j = i;
-        while (from[j - begin] != i) {
-            s.move(from[j - begin], j);
-            done[j - begin] = 1;
-            j = from[j - begin];
-        }
-        s.move(n, j);
-        done[j - begin] = 1;
-    }
-    s.resize(n);
+    std::vector<std::uint32_t> from(s.n);
+    std::iota(from.begin(), from.end(), 0u);
+    std::sort(from.begin() + static_cast<std::ptrdiff_t>(begin), from.end(),
+              [&](std::uint32_t a, std::uint32_t b) { return s.id[a] < s.id[b]; });
+    s.permute(from);
 }
 
 } // namespace

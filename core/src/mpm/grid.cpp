@@ -27,7 +27,7 @@ std::size_t GridGeometry::owned_cell_index(const double *x) const {
     std::size_t idx = 0, stride = 1;
     for (int d = 0; d < dim; ++d) {
         const std::size_t a = static_cast<std::size_t>(d);
-        const int lo = first[a] + kGhostLayers, n = extent[a] - 1 - 2 * kGhostLayers;
+        const int lo = first[a] + kGhostLayers, n = owned_cells(d);
         idx += static_cast<std::size_t>(std::clamp(cell(d, x[d]) - lo, 0, n - 1)) * stride;
         stride *= static_cast<std::size_t>(n);
     }
@@ -62,7 +62,7 @@ Grid::Grid(int dim, const std::array<double, 3> &origin, const std::array<double
         }
         n_nodes *= static_cast<std::size_t>(geo.extent[d]);
         if (static_cast<int>(d) < dim)
-            n_cells *= static_cast<std::size_t>(geo.extent[d] - 1 - 2 * kGhostLayers);
+            n_cells *= static_cast<std::size_t>(geo.owned_cells(static_cast<int>(d)));
     }
     acc.assign(node::kRecord * n_nodes, 0.0);
     vel.assign(node::kRecord * n_nodes, 0.0);

@@ -62,8 +62,13 @@ struct GridGeometry {
     }
     // Cell number (in the domain's cell order) of a position.
     std::size_t cell_index(const double *x) const;
+    // Cells this grid's rank owns along axis d (its box; the domain's on
+    // one rank): the held nodes but the ghost layers and the far face.
+    int owned_cells(int d) const {
+        return extent[static_cast<std::size_t>(d)] - 1 - 2 * kGhostLayers;
+    }
     // Cell number among the cells this grid's rank owns (its box, in the
-    // same order; the domain's on one rank), clamped into the box.
+    // same order), clamped into the box.
     std::size_t owned_cell_index(const double *x) const;
 };
 

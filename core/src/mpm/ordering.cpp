@@ -86,43 +86,10 @@ void Ordering::bin(const std::vector<ParticleSet> &sets) {
     slabs_changed_ = false;
 }
 
-namespace {
-
-// Applies the permutation (particle p takes the values particle from[p] had)
-// to one column in place by following its cycles: each value moves once,
-// with room for one particle's values aside. A buffer the size of the
-// column (72 bytes per particle for F) would be resident for the whole run
-// once the first sort had touched it.
-template <class T>
-void permute_in_place(T *a, std::size_t stride, const std::vector<std::uint32_t> &from,
-                      std::vector<bool> &done, std::vector<T> &aside) {
-    const std::size_t n = from.size();
-    done.assign(n, false);
-    aside.resize(stride);
-    for (std::size_t start = 0; start < n; ++start) {
-        if (done[start] || from[start] == start) continue;
-        std::copy_n(a + start * stride, stride, aside.data());
-        std::size_t j = start;
-        for (;;) {
-            done[j] = true;
-            const std::size_t k = from[j];
-            if (k == start) {
-                std::copy_n(aside.data(), stride, a + j * stride);
-                break;
-            }
-            std::copy_n(a + k * stride, stride, a + j * stride);
-            j = k;
-        }
-    }
-}
-
-} // namespace
-
 // Reorders each set's particles by cell: a stable sort of the permutation,
-// then every column permuted in place (permute_in_place).
+// then every column permuted in place (ParticleSet::permute).
 void Ordering::sort(std::vector<ParticleSet> &sets) {
     std::vector<std::uint32_t> key, from;
-    std::vector<bool> done;
     for (ParticleSet &s : sets) {
         key.resize(s.n);
         from.resize(s.n);
@@ -137,11 +104,7 @@ void Ordering::sort(std::vector<ParticleSet> &sets) {
         for (std::size_t p = 0; p < s.n && sorted; ++p)
             sorted = from[p] == p;
         if (sorted) continue;
-        s.for_each_column([&](auto &a, std::size_t stride) {
-            using T = typename std::decay_t<decltype(a)>::value_type;
-            std::vector<T> aside;
-            permute_in_place(a.data(), stride, from, done, aside);
-        });
+        s.permute(from);
     }
     invalidate();
 }

@@ -4,6 +4,8 @@
 #include <cstring>
 #include <new>
 #include <stdexcept>
+#include <type_traits>
+#include <vector>
 
 namespace talus {
 
@@ -52,6 +54,47 @@ void ParticleSet::resize(std::size_t count) {
         col.size_ = count * stride;
     });
     n = count;
+}
+
+namespace {
+
+// Applies the permutation (particle p takes the values particle from[p] had)
+// to one column in place by following its cycles: each value moves once,
+// with room for one particle's values aside. A buffer the size of the
+// column (72 bytes per particle for F) would be resident for the whole run
+// once the first sort had touched it.
+template <class T>
+void permute_in_place(T *a, std::size_t stride, const std::vector<std::uint32_t> &from,
+                      std::vector<bool> &done, std::vector<T> &aside) {
+    const std::size_t n = from.size();
+    done.assign(n, false);
+    aside.resize(stride);
+    for (std::size_t start = 0; start < n; ++start) {
+        if (done[start] || from[start] == start) continue;
+        std::copy_n(a + start * stride, stride, aside.data());
+        std::size_t j = start;
+        for (;;) {
+            done[j] = true;
+            const std::size_t k = from[j];
+            if (k == start) {
+                std::copy_n(aside.data(), stride, a + j * stride);
+                break;
+            }
+            std::copy_n(a + k * stride, stride, a + j * stride);
+            j = k;
+        }
+    }
+}
+
+} // namespace
+
+void ParticleSet::permute(const std::vector<std::uint32_t> &from) {
+    std::vector<bool> done;
+    for_each_column([&](auto &a, std::size_t stride) {
+        using T = typename std::decay_t<decltype(a)>::value_type;
+        std::vector<T> aside;
+        permute_in_place(a.data(), stride, from, done, aside);
+    });
 }
 
 void ParticleSet::move(std::size_t from, std::size_t to) {

@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <vector>
 
 namespace talus {
 
@@ -81,6 +82,9 @@ struct ParticleSet {
     void resize(std::size_t count);
     // Moves particle `from` to slot `to` (compaction).
     void move(std::size_t from, std::size_t to);
+    // Reorders the particles in place: particle p takes the values particle
+    // from[p] had (from.size() == n).
+    void permute(const std::vector<std::uint32_t> &from);
     // Copies particle p of `other` (a set of another material with the same
     // columns in use) into slot q, all but its state.
     void copy_point(ParticleSet &other, std::size_t p, std::size_t q);
