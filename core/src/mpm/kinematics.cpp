@@ -1,8 +1,278 @@
+// The kinematics of a block of material points, across the vector lanes.
+//
+// The per-point work (F, J, rho, strain increment, the Hughes-Winget
+// rotation of the start stress) is a few dozen multiplies and adds and two
+// divisions on values that sit 9 or 6 doubles apart in the particle and
+// ABI arrays. Point by point it is scalar code bound by its operation count
+// and its divisions (16-18 % of a step in 2D and 3D); the compiler does not
+// vectorise it across points by itself (GCC 12: the 9-double groups have no
+// vector type). Here N consecutive points are loaded into the N lanes of a
+// vector (one lane per point), computed together and stored back to their
+// places: N points for the cost of about one, less the loads and stores.
+//
+// This file is compiled without contraction of multiplies and adds into
+// fused multiply-adds (-ffp-contract=off, core/CMakeLists.txt): every lane
+// then rounds as the scalar code does, whatever the instruction set, so the
+// packs, the scalar remainder and dilation_sums (which recomputes J) agree
+// to the last bit, and so do runs on machines with different vector widths.
 #include "kinematics.hpp"
 
 #include <algorithm>
+#include <cstring>
+#include <utility>
 
 namespace talus {
+
+namespace {
+
+// F at the end of the step, F1 = (I + dt L) F0 (eq. 39), and its
+// determinant J. L is row-major 3x3; in plane strain only the in-plane
+// block of F changes. T: double, or a vector of doubles (one point a lane).
+template <int D, class T, class LT>
+[[gnu::always_inline]] inline void deformation(const T (&F0)[9], const LT (&L)[9], double dt,
+                                               T (&F1)[9], T &J) {
+    if constexpr (D == 2) {
+        const T a00 = 1.0 + dt * L[0], a01 = dt * L[1], a10 = dt * L[3], a11 = 1.0 + dt * L[4];
+        F1[0] = a00 * F0[0] + a01 * F0[3];
+        F1[1] = a00 * F0[1] + a01 * F0[4];
+        F1[3] = a10 * F0[0] + a11 * F0[3];
+        F1[4] = a10 * F0[1] + a11 * F0[4];
+        F1[2] = F1[5] = F1[6] = F1[7] = T{};
+        F1[8] = F0[8];
+        J = (F1[0] * F1[4] - F1[1] * F1[3]) * F1[8];
+    } else {
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j)
+                F1[3 * i + j] = F0[3 * i + j] + dt * (L[3 * i] * F0[j] + L[3 * i + 1] * F0[3 + j] +
+                                                      L[3 * i + 2] * F0[6 + j]);
+        J = F1[0] * (F1[4] * F1[8] - F1[5] * F1[7]) - F1[1] * (F1[3] * F1[8] - F1[5] * F1[6]) +
+            F1[2] * (F1[3] * F1[7] - F1[4] * F1[6]);
+    }
+}
+
+// One point, scalar: the reference the packs reproduce, and the points
+// that do not fill a pack. False if the point inverted (its J is kept, so
+// that the error shows the value that failed; nothing else is written).
+template <int D, bool Rotate>
+[[gnu::always_inline]] inline bool one_point(ParticleSet &s, std::size_t p, std::size_t k,
+                                             const double *Lp, double dt, const BlockIncrement &out,
+                                             double *divv) {
+    double F0[9], L[9], F1[9];
+    std::memcpy(F0, &s.F[9 * p], sizeof F0);
+    std::memcpy(L, Lp, sizeof L);
+    double J;
+    deformation<D>(F0, L, dt, F1, J);
+    s.J[p] = J;
+    if (!(J > 0.0)) [[unlikely]]
+        return false;
+    std::memcpy(out.F_end + 9 * k, F1, sizeof F1);
+    out.rho[k] = s.rho0 / J;
+    double *de = out.de + 6 * k;
+    de[0] = dt * L[0];
+    de[1] = dt * L[4];
+    de[2] = dt * L[8];
+    de[3] = dt * (L[1] + L[3]);
+    de[4] = dt * (L[5] + L[7]);
+    de[5] = dt * (L[2] + L[6]);
+    if (divv) divv[k] = L[0] + L[4] + L[8];
+    if constexpr (Rotate) hughes_winget(L, dt, &s.stress[6 * p]);
+    return true;
+}
+
+// The Hughes-Winget rotation of N points' start stresses, lane by lane the
+// arithmetic of hughes_winget (stress_rotation.hpp): its three cases (no
+// spin, a spin about z alone, any other) become a choice per lane.
+// Returns false, writing nothing, if a pack of plane-strain points has a
+// spin off the plane (the caller then goes point by point).
+template <int D, class V>
+[[gnu::always_inline]] inline bool rotate_pack(const V (&L)[9], double dt, V (&sig)[6]) {
+    const V a1 = 0.25 * dt * (L[7] - L[5]);
+    const V a2 = 0.25 * dt * (L[2] - L[6]);
+    const V a3 = 0.25 * dt * (L[3] - L[1]);
+    const V aa = a1 * a1 + a2 * a2 + a3 * a3;
+    const V c = 2.0 / (1.0 + aa);
+    const auto still = aa == 0.0;
+    const auto in_plane = (a1 == 0.0) & (a2 == 0.0);
+    if constexpr (D == 2) {
+        bool off_plane = false;
+        for (std::size_t i = 0; i < sizeof(V) / sizeof(double); ++i)
+            off_plane |= !in_plane[i];
+        if (off_plane) return false;
+    }
+    const V sxx = sig[0], syy = sig[1], szz = sig[2], sxy = sig[3], syz = sig[4], sxz = sig[5];
+    // A spin about z alone: the angle with cos = 1 - c a3^2, sin = c a3.
+    const V co = 1.0 - c * a3 * a3, si = c * a3;
+    const V cc = co * co, ss = si * si, cs = co * si;
+    V r[6];
+    r[0] = cc * sxx - 2.0 * cs * sxy + ss * syy;
+    r[1] = ss * sxx + 2.0 * cs * sxy + cc * syy;
+    r[2] = szz;
+    r[3] = cs * (sxx - syy) + (cc - ss) * sxy;
+    r[5] = co * sxz - si * syz;
+    r[4] = si * sxz + co * syz;
+    if constexpr (D == 3) {
+        // Any other spin: Q s Q^T with Q = I + c (A + A^2).
+        const V Q[3][3] = {{1.0 + c * (a1 * a1 - aa), c * (-a3 + a1 * a2), c * (a2 + a1 * a3)},
+                           {c * (a3 + a2 * a1), 1.0 + c * (a2 * a2 - aa), c * (-a1 + a2 * a3)},
+                           {c * (-a2 + a3 * a1), c * (a1 + a3 * a2), 1.0 + c * (a3 * a3 - aa)}};
+        const V S[3][3] = {{sxx, sxy, sxz}, {sxy, syy, syz}, {sxz, syz, szz}};
+        V QS[3][3];
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j)
+                QS[i][j] = Q[i][0] * S[0][j] + Q[i][1] * S[1][j] + Q[i][2] * S[2][j];
+        // Voigt order: (0 0), (1 1), (2 2), (0 1), (1 2), (0 2).
+        constexpr int row[6] = {0, 1, 2, 0, 1, 0}, col[6] = {0, 1, 2, 1, 2, 2};
+        for (int m = 0; m < 6; ++m) {
+            const int i = row[m], j = col[m];
+            const V g = QS[i][0] * Q[j][0] + QS[i][1] * Q[j][1] + QS[i][2] * Q[j][2];
+            r[m] = in_plane ? r[m] : g;
+        }
+    }
+    for (int i = 0; i < 6; ++i)
+        sig[i] = still ? sig[i] : r[i];
+    return true;
+}
+
+// A vector of N doubles (a dependent vector_size in a function template is
+// not one in GCC 12).
+template <int N>
+struct Lanes;
+template <>
+struct Lanes<2> {
+    typedef double V __attribute__((vector_size(2 * sizeof(double))));
+};
+template <>
+struct Lanes<4> {
+    typedef double V __attribute__((vector_size(4 * sizeof(double))));
+};
+template <>
+struct Lanes<8> {
+    typedef double V __attribute__((vector_size(8 * sizeof(double))));
+};
+
+// Lane k of v from base[k * stride], and back. (Vectors by reference: by
+// value they would change the calling convention with the target.) The
+// vector is built whole from its lanes, which the compiler does with
+// inserts in registers; through an array on the stack, a vector load of
+// eight scalar stores waits for them (no store forwarding): that made the
+// packs slower than the scalar code. GCC 12 reports the whole-vector
+// assignment as a read of an unset value, wrongly.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+template <int N, class V>
+[[gnu::always_inline]] inline void load_lanes(const double *base, std::size_t stride, V &v) {
+    [&]<std::size_t... k>(std::index_sequence<k...>) __attribute__((always_inline)) {
+        v = V{base[k * stride]...};
+    }
+    (std::make_index_sequence<N>{});
+}
+#pragma GCC diagnostic pop
+template <int N, class V>
+[[gnu::always_inline]] inline void store_lanes(double *base, std::size_t stride, const V &v) {
+    for (int k = 0; k < N; ++k)
+        base[static_cast<std::size_t>(k) * stride] = v[k];
+}
+
+// The block in packs of N points, the rest point by point. A pack with an
+// inverted point, or (plane strain) a spin off the plane, goes point by
+// point too: nothing of it is stored before those tests.
+template <int N, int D, bool Rotate>
+[[gnu::always_inline]] inline std::size_t
+block_packs(ParticleSet &s, std::size_t begin, std::size_t count, const double *L,
+            std::size_t L_stride, double dt, const BlockIncrement &out) {
+    using V = typename Lanes<N>::V;
+    double *divv = s.has_divv ? &s.divv[begin] : nullptr;
+    const double rho0 = s.rho0;
+    std::size_t k = 0;
+    auto by_point = [&](std::size_t from, std::size_t to) __attribute__((always_inline)) {
+        for (std::size_t j = from; j < to; ++j)
+            if (!one_point<D, Rotate>(s, begin + j, j, L + L_stride * j, dt, out, divv)) return j;
+        return to;
+    };
+    for (; k + N <= count; k += N) {
+        const std::size_t p = begin + k;
+        const double *Lk = L + L_stride * k;
+        V Lv[9], F0[9], F1[9];
+        for (int c = 0; c < 9; ++c) {
+            load_lanes<N>(Lk + c, L_stride, Lv[c]);
+            load_lanes<N>(&s.F[9 * p + static_cast<std::size_t>(c)], 9, F0[c]);
+        }
+        V J;
+        deformation<D>(F0, Lv, dt, F1, J);
+        bool inverted = false;
+        for (int i = 0; i < N; ++i)
+            inverted |= !(J[i] > 0.0);
+        V sig[6];
+        if constexpr (Rotate) {
+            for (int c = 0; c < 6; ++c)
+                load_lanes<N>(&s.stress[6 * p + static_cast<std::size_t>(c)], 6, sig[c]);
+            if (!inverted && !rotate_pack<D>(Lv, dt, sig)) inverted = true;
+        }
+        if (inverted) [[unlikely]] {
+            const std::size_t done = by_point(k, k + N);
+            if (done < k + N) return done;
+            continue;
+        }
+        std::memcpy(&s.J[p], &J, sizeof J);
+        const V rho = rho0 / J;
+        std::memcpy(out.rho + k, &rho, sizeof rho);
+        for (int c = 0; c < 9; ++c)
+            store_lanes<N>(out.F_end + 9 * k + static_cast<std::size_t>(c), 9, F1[c]);
+        const V de[6] = {dt * Lv[0],           dt * Lv[4],           dt * Lv[8],
+                         dt * (Lv[1] + Lv[3]), dt * (Lv[5] + Lv[7]), dt * (Lv[2] + Lv[6])};
+        for (int c = 0; c < 6; ++c)
+            store_lanes<N>(out.de + 6 * k + static_cast<std::size_t>(c), 6, de[c]);
+        if (divv) {
+            const V dv = Lv[0] + Lv[4] + Lv[8];
+            std::memcpy(divv + k, &dv, sizeof dv);
+        }
+        if constexpr (Rotate)
+            for (int c = 0; c < 6; ++c)
+                store_lanes<N>(&s.stress[6 * p + static_cast<std::size_t>(c)], 6, sig[c]);
+    }
+    return by_point(k, count);
+}
+
+// Strain-increment models get the objectively rotated start stress;
+// finite-strain models own their objectivity (material_abi.h).
+template <int N>
+[[gnu::always_inline]] inline std::size_t
+block_of(ParticleSet &s, std::size_t begin, std::size_t count, const double *L,
+         std::size_t L_stride, double dt, const BlockIncrement &out) {
+    const bool rotate = !s.finite_strain;
+    if (s.dim == 2)
+        return rotate ? block_packs<N, 2, true>(s, begin, count, L, L_stride, dt, out)
+                      : block_packs<N, 2, false>(s, begin, count, L, L_stride, dt, out);
+    return rotate ? block_packs<N, 3, true>(s, begin, count, L, L_stride, dt, out)
+                  : block_packs<N, 3, false>(s, begin, count, L, L_stride, dt, out);
+}
+
+// One version per instruction set (isa.hpp), with its vector width.
+std::size_t block_generic(ParticleSet &s, std::size_t begin, std::size_t count, const double *L,
+                          std::size_t L_stride, double dt, const BlockIncrement &out) {
+    return block_of<2>(s, begin, count, L, L_stride, dt, out);
+}
+TALUS_TARGET_AVX2 std::size_t block_avx2(ParticleSet &s, std::size_t begin, std::size_t count,
+                                         const double *L, std::size_t L_stride, double dt,
+                                         const BlockIncrement &out) {
+    return block_of<4>(s, begin, count, L, L_stride, dt, out);
+}
+TALUS_TARGET_AVX512 std::size_t block_avx512(ParticleSet &s, std::size_t begin, std::size_t count,
+                                             const double *L, std::size_t L_stride, double dt,
+                                             const BlockIncrement &out) {
+    return block_of<8>(s, begin, count, L, L_stride, dt, out);
+}
+
+} // namespace
+
+std::size_t kinematics_block(ParticleSet &s, std::size_t begin, std::size_t count, const double *L,
+                             std::size_t L_stride, double dt, const BlockIncrement &out, Isa isa) {
+    if constexpr (TALUS_HAS_ISA_VERSIONS) {
+        if (isa == Isa::avx512) return block_avx512(s, begin, count, L, L_stride, dt, out);
+        if (isa == Isa::avx2) return block_avx2(s, begin, count, L, L_stride, dt, out);
+    }
+    return block_generic(s, begin, count, L, L_stride, dt, out);
+}
 
 std::optional<Inversion> dilation_sums(std::vector<ParticleSet> &sets, const GridGeometry &geo,
                                        double dt, DilationCells &cells) {
@@ -11,11 +281,15 @@ std::optional<Inversion> dilation_sums(std::vector<ParticleSet> &sets, const Gri
     for (std::size_t si = 0; si < sets.size(); ++si) {
         ParticleSet &s = sets[si];
         par::for_each(s.n, [&](std::size_t p) {
-            double F_end[9];
-            const double *L = &s.L[9 * p];
-            // The same arithmetic as the material update's kinematics_block,
-            // which recomputes J: both see the same value.
-            s.J[p] = deformation_point(&s.F[9 * p], L, dt, dim, F_end);
+            double F0[9], L[9], F_end[9];
+            std::memcpy(F0, &s.F[9 * p], sizeof F0);
+            std::memcpy(L, &s.L[9 * p], sizeof L);
+            // The arithmetic of kinematics_block, which recomputes J: both
+            // see the same value.
+            if (dim == 2)
+                deformation<2>(F0, L, dt, F_end, s.J[p]);
+            else
+                deformation<3>(F0, L, dt, F_end, s.J[p]);
             if (!(s.J[p] > 0.0)) inverted.record({si, p});
             s.divv[p] = L[0] + L[4] + L[8];
         });

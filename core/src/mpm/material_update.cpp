@@ -22,9 +22,10 @@ double det3(const double *F) {
 
 } // namespace
 
-MaterialUpdate::MaterialUpdate(MaterialNames names, int batch_size, double characteristic_length)
+MaterialUpdate::MaterialUpdate(MaterialNames names, int batch_size, double characteristic_length,
+                               Isa isa)
     : names_(std::move(names)), batch_(static_cast<std::size_t>(std::max(1, batch_size))),
-      length_(characteristic_length) {}
+      length_(characteristic_length), isa_(isa) {}
 
 void MaterialUpdate::prepare(const std::vector<ParticleSet> &sets) {
     // The thread count may have changed since the last call
@@ -95,8 +96,9 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
                            UpdateFailures &failures) {
     const auto t0 = std::chrono::steady_clock::now();
     Scratch &scr = scratch_[static_cast<std::size_t>(par::thread_index())];
-    const std::size_t done = kinematics_block(s, begin, count, L, L_stride, inc.dt,
-                                              {scr.F_end.data(), scr.de.data(), scr.rho.data()});
+    const std::size_t done =
+        kinematics_block(s, begin, count, L, L_stride, inc.dt,
+                         {scr.F_end.data(), scr.de.data(), scr.rho.data()}, isa_);
     if (done < count) {
         failures.inverted.record({set, begin + done});
         return;

@@ -67,8 +67,9 @@ struct UpdateFailures {
 class MaterialUpdate {
   public:
     // `characteristic_length`: what the plugins see as each point's length
-    // (the grid's cell size; talus_batch.characteristic_length).
-    MaterialUpdate(MaterialNames names, int batch_size, double characteristic_length);
+    // (the grid's cell size; talus_batch.characteristic_length); `isa`:
+    // the instruction set of the kinematics (kinematics_block).
+    MaterialUpdate(MaterialNames names, int batch_size, double characteristic_length, Isa isa);
 
     // The set-up call (talus_model.init_state, or update with dt = 0) for
     // points [begin, begin + count) of set s at time t: particles that
@@ -139,6 +140,7 @@ class MaterialUpdate {
     MaterialNames names_;
     std::size_t batch_;
     double length_;
+    Isa isa_;
     std::vector<Scratch> scratch_;
     long cut_steps_ = 0;
 };

@@ -137,8 +137,9 @@ Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options, const Sn
                    : initial_particles(sc, stages, first_id, instances, comm)),
       order(grid.geo, sets.size()), loads(sc, stages[0].conditions, Vec3{0, 0, 0}, 0.0),
       domain(domain_of(sc, stages[0].conditions)),
-      materials(names_of(sc, sets), opt.batch_size, sc.cell), variant(variant_of(sc.solver)),
-      isa(talus::kernel_isa()), velocity_motion(velocity_motion_of(sc.solver)) {
+      materials(names_of(sc, sets), opt.batch_size, sc.cell, talus::kernel_isa()),
+      variant(variant_of(sc.solver)), isa(talus::kernel_isa()),
+      velocity_motion(velocity_motion_of(sc.solver)) {
     for (const GroupSpec &g : sc.groups)
         group_names.push_back(g.name);
     // A snapshot read on another number of ranks than wrote it (this

@@ -1,0 +1,196 @@
+// The block kinematics (core/src/mpm/kinematics.cpp), which computes N
+// points at once across the vector lanes:
+//
+// - against the definitions, point by point, computed here independently:
+//   F1 = (I + dt L) F0 (seed 000 eq. 39), J = det F1, rho = rho0 / J
+//   (eq. 41), the strain increment dt sym(L) with engineering shears
+//   (eq. 42), div v = tr L, and the start stress turned by the
+//   Hughes-Winget rotation Q = (I - A)^-1 (I + A), A = dt skew(L) / 2, from
+//   a general matrix inverse. Each value is a sum of at most a few dozen
+//   products of numbers of order one (F, dt L) or of the stress scale:
+//   1e-13 of that scale bounds the different order of the operations with
+//   a wide margin (a few hundred ulps), as in test_stress_rotation.cpp;
+// - every instruction set against the generic one, bit for bit: each lane
+//   does the operations of the scalar code in its order, without fused
+//   multiply-adds (the file is compiled with -ffp-contract=off), so the
+//   width of the vectors, the packing and the remainder cannot change a
+//   bit. Runs on different machines depend on this;
+// - an inverted point: the points before it done, its J kept, nothing
+//   after it touched.
+#include "isa.hpp"
+#include "kinematics.hpp"
+
+#include <talus/sdk/voigt.hpp>
+
+#include <Eigen/Dense>
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <random>
+#include <vector>
+
+namespace {
+
+using talus::Isa;
+using talus::ParticleSet;
+
+// The instruction sets this CPU runs (the widest is kernel_isa()'s).
+std::vector<Isa> isas() {
+    std::vector<Isa> v{Isa::generic};
+    const Isa widest = talus::kernel_isa();
+    if (widest == Isa::avx2 || widest == Isa::avx512) v.push_back(Isa::avx2);
+    if (widest == Isa::avx512) v.push_back(Isa::avx512);
+    return v;
+}
+
+struct Block {
+    ParticleSet s;
+    std::vector<double> L, F_end, de, rho;
+    Block(int dim, bool finite_strain, std::size_t n) {
+        s.dim = dim;
+        s.finite_strain = finite_strain;
+        s.has_L = s.has_dx = s.has_C = s.has_lp = false;
+        s.has_divv = true;
+        s.rho0 = 2000.0;
+        s.resize(n);
+        L.assign(9 * n, 0.0);
+        F_end.assign(9 * n, -1.0);
+        de.assign(6 * n, -1.0);
+        rho.assign(n, -1.0);
+    }
+    std::size_t run(Isa isa, std::size_t L_stride = 9) {
+        return talus::kinematics_block(s, 0, s.n, L.data(), L_stride, dt,
+                                       {F_end.data(), de.data(), rho.data()}, isa);
+    }
+    double dt = 0.05;
+};
+
+// Random points: F near the identity, L of order one (dt L of order 0.05),
+// stresses of order 1e5. Every eighth point has no spin (L symmetric) and
+// in 3D every fifth spins about z alone: the rotation's three cases, mixed
+// within a pack.
+Block random_block(int dim, bool finite_strain, std::size_t n, unsigned seed) {
+    Block b(dim, finite_strain, n);
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    for (std::size_t p = 0; p < n; ++p) {
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j) {
+                const bool in = i < dim && j < dim;
+                b.s.F[9 * p + 3 * i + j] = (i == j ? 1.0 : 0.0) + (in ? 0.2 * u(rng) : 0.0);
+                b.L[9 * p + 3 * i + j] = in ? u(rng) : 0.0;
+            }
+        double *L = &b.L[9 * p];
+        if (p % 8 == 3)
+            for (int i = 0; i < 3; ++i)
+                for (int j = 0; j < i; ++j)
+                    L[3 * i + j] = L[3 * j + i];
+        if (dim == 3 && p % 5 == 1) L[2] = L[6] = L[5] = L[7] = 0.0;
+        for (int k = 0; k < 6; ++k)
+            b.s.stress[6 * p + k] = 1e5 * u(rng);
+        b.s.J[p] = b.s.divv[p] = -7.0;
+    }
+    return b;
+}
+
+Eigen::Matrix3d mat(const double *a) {
+    return Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(a);
+}
+
+} // namespace
+
+TEST(Kinematics, BlockMatchesTheDefinitions) {
+    for (int dim : {2, 3})
+        for (bool finite : {false, true}) {
+            Block b = random_block(dim, finite, 37, 11);
+            const Block start = random_block(dim, finite, 37, 11);
+            ASSERT_EQ(b.run(Isa::generic), 37u);
+            for (std::size_t p = 0; p < 37; ++p) {
+                const Eigen::Matrix3d F0 = mat(&start.s.F[9 * p]), L = mat(&b.L[9 * p]);
+                const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
+                const Eigen::Matrix3d F1 = (I + b.dt * L) * F0;
+                const std::string where = "dim " + std::to_string(dim) + ", point " +
+                                          std::to_string(p) + (finite ? ", finite strain" : "");
+                EXPECT_LT((mat(&b.F_end[9 * p]) - F1).cwiseAbs().maxCoeff(), 1e-13) << where;
+                EXPECT_NEAR(b.s.J[p], F1.determinant(), 1e-13) << where;
+                EXPECT_NEAR(b.rho[p], b.s.rho0 / F1.determinant(), 1e-13 * b.s.rho0) << where;
+                const Eigen::Matrix3d E = 0.5 * b.dt * (L + L.transpose());
+                const double expect_de[6] = {E(0, 0),       E(1, 1),       E(2, 2),
+                                             2.0 * E(0, 1), 2.0 * E(1, 2), 2.0 * E(0, 2)};
+                for (int k = 0; k < 6; ++k)
+                    EXPECT_NEAR(b.de[6 * p + k], expect_de[k], 1e-13) << where << ", de " << k;
+                EXPECT_NEAR(b.s.divv[p], L.trace(), 1e-13) << where;
+                // Strain-increment models get the rotated start stress;
+                // finite-strain models their own.
+                Eigen::Matrix3d A;
+                for (int i = 0; i < 3; ++i)
+                    for (int j = 0; j < 3; ++j)
+                        A(i, j) = 0.25 * b.dt * (L(i, j) - L(j, i));
+                const Eigen::Matrix3d Q = finite ? I : Eigen::Matrix3d((I - A).inverse() * (I + A));
+                talus::sdk::Vec6 s0;
+                for (int k = 0; k < 6; ++k)
+                    s0[k] = start.s.stress[6 * p + k];
+                const talus::sdk::Vec6 expect = talus::sdk::matrix_to_stress(
+                    Q * talus::sdk::stress_to_matrix(s0) * Q.transpose());
+                for (int k = 0; k < 6; ++k)
+                    EXPECT_NEAR(b.s.stress[6 * p + k], expect[k], 1e-13 * 1e5)
+                        << where << ", stress " << k;
+            }
+        }
+}
+
+TEST(Kinematics, EveryInstructionSetGivesTheGenericBits) {
+    // Counts below, at and past a pack, and a plugin batch; L_stride 0 is
+    // the initial state's one L for all points.
+    for (int dim : {2, 3})
+        for (bool finite : {false, true})
+            for (std::size_t n : {1u, 7u, 8u, 13u, 128u})
+                for (std::size_t stride : {9u, 0u}) {
+                    Block ref = random_block(dim, finite, n, 5);
+                    ASSERT_EQ(ref.run(Isa::generic, stride), n);
+                    for (Isa isa : isas()) {
+                        Block b = random_block(dim, finite, n, 5);
+                        ASSERT_EQ(b.run(isa, stride), n);
+                        const std::string where = std::string(talus::isa_name(isa)) + ", dim " +
+                                                  std::to_string(dim) + ", n " + std::to_string(n) +
+                                                  ", stride " + std::to_string(stride);
+                        auto same = [&](const double *a, const double *c, std::size_t m) {
+                            return std::memcmp(a, c, m * sizeof(double)) == 0;
+                        };
+                        EXPECT_TRUE(same(b.F_end.data(), ref.F_end.data(), 9 * n)) << where;
+                        EXPECT_TRUE(same(b.de.data(), ref.de.data(), 6 * n)) << where;
+                        EXPECT_TRUE(same(b.rho.data(), ref.rho.data(), n)) << where;
+                        EXPECT_TRUE(same(b.s.J.data(), ref.s.J.data(), n)) << where;
+                        EXPECT_TRUE(same(b.s.divv.data(), ref.s.divv.data(), n)) << where;
+                        EXPECT_TRUE(same(b.s.stress.data(), ref.s.stress.data(), 6 * n)) << where;
+                    }
+                }
+}
+
+TEST(Kinematics, AnInvertedPointStopsTheBlockThere) {
+    for (int dim : {2, 3})
+        for (Isa isa : isas()) {
+            const std::size_t n = 20, bad = 11;
+            Block b = random_block(dim, false, n, 9);
+            const Block start = random_block(dim, false, n, 9);
+            // 1 + dt L_xx = -2 and no other gradient: F1's first row is
+            // -2 times F0's, so J = -2 det F0 < 0.
+            double *L = &b.L[9 * bad];
+            for (int k = 0; k < 9; ++k)
+                L[k] = 0.0;
+            L[0] = -3.0 / b.dt;
+            ASSERT_EQ(b.run(isa), bad) << talus::isa_name(isa);
+            Block ref = random_block(dim, false, bad, 9); // the points before it alone
+            ASSERT_EQ(ref.run(Isa::generic), bad);
+            EXPECT_EQ(
+                0, std::memcmp(b.s.stress.data(), ref.s.stress.data(), 6 * bad * sizeof(double)));
+            EXPECT_EQ(0, std::memcmp(b.F_end.data(), ref.F_end.data(), 9 * bad * sizeof(double)));
+            EXPECT_LT(b.s.J[bad], 0.0); // kept: the error message shows it
+            for (std::size_t p = bad; p < n; ++p)
+                for (int k = 0; k < 6; ++k)
+                    EXPECT_EQ(b.s.stress[6 * p + k], start.s.stress[6 * p + k])
+                        << "point " << p << " of " << talus::isa_name(isa);
+            for (std::size_t p = bad + 1; p < n; ++p)
+                EXPECT_EQ(b.s.J[p], -7.0) << "point " << p << " of " << talus::isa_name(isa);
+        }
+}
