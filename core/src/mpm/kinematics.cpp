@@ -157,8 +157,10 @@ struct Lanes<8> {
 // eight scalar stores waits for them (no store forwarding): that made the
 // packs slower than the scalar code. GCC 12 reports the whole-vector
 // assignment as a read of an unset value, wrongly.
+#if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
 template <int N, class V>
 [[gnu::always_inline]] inline void load_lanes(const double *base, std::size_t stride, V &v) {
     [&]<std::size_t... k>(std::index_sequence<k...>) __attribute__((always_inline)) {
@@ -166,7 +168,9 @@ template <int N, class V>
     }
     (std::make_index_sequence<N>{});
 }
+#if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic pop
+#endif
 template <int N, class V>
 [[gnu::always_inline]] inline void store_lanes(double *base, std::size_t stride, const V &v) {
     for (int k = 0; k < N; ++k)
