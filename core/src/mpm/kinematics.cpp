@@ -79,60 +79,6 @@ template <int D, bool Rotate>
     return true;
 }
 
-// The Hughes-Winget rotation of N points' start stresses, lane by lane the
-// arithmetic of hughes_winget (stress_rotation.hpp): its three cases (no
-// spin, a spin about z alone, any other) become a choice per lane.
-// Returns false, writing nothing, if a pack of plane-strain points has a
-// spin off the plane (the caller then goes point by point).
-template <int D, class V>
-[[gnu::always_inline]] inline bool rotate_pack(const V (&L)[9], double dt, V (&sig)[6]) {
-    const V a1 = 0.25 * dt * (L[7] - L[5]);
-    const V a2 = 0.25 * dt * (L[2] - L[6]);
-    const V a3 = 0.25 * dt * (L[3] - L[1]);
-    const V aa = a1 * a1 + a2 * a2 + a3 * a3;
-    const V c = 2.0 / (1.0 + aa);
-    const auto still = aa == 0.0;
-    const auto in_plane = (a1 == 0.0) & (a2 == 0.0);
-    if constexpr (D == 2) {
-        bool off_plane = false;
-        for (std::size_t i = 0; i < sizeof(V) / sizeof(double); ++i)
-            off_plane |= !in_plane[i];
-        if (off_plane) return false;
-    }
-    const V sxx = sig[0], syy = sig[1], szz = sig[2], sxy = sig[3], syz = sig[4], sxz = sig[5];
-    // A spin about z alone: the angle with cos = 1 - c a3^2, sin = c a3.
-    const V co = 1.0 - c * a3 * a3, si = c * a3;
-    const V cc = co * co, ss = si * si, cs = co * si;
-    V r[6];
-    r[0] = cc * sxx - 2.0 * cs * sxy + ss * syy;
-    r[1] = ss * sxx + 2.0 * cs * sxy + cc * syy;
-    r[2] = szz;
-    r[3] = cs * (sxx - syy) + (cc - ss) * sxy;
-    r[5] = co * sxz - si * syz;
-    r[4] = si * sxz + co * syz;
-    if constexpr (D == 3) {
-        // Any other spin: Q s Q^T with Q = I + c (A + A^2).
-        const V Q[3][3] = {{1.0 + c * (a1 * a1 - aa), c * (-a3 + a1 * a2), c * (a2 + a1 * a3)},
-                           {c * (a3 + a2 * a1), 1.0 + c * (a2 * a2 - aa), c * (-a1 + a2 * a3)},
-                           {c * (-a2 + a3 * a1), c * (a1 + a3 * a2), 1.0 + c * (a3 * a3 - aa)}};
-        const V S[3][3] = {{sxx, sxy, sxz}, {sxy, syy, syz}, {sxz, syz, szz}};
-        V QS[3][3];
-        for (int i = 0; i < 3; ++i)
-            for (int j = 0; j < 3; ++j)
-                QS[i][j] = Q[i][0] * S[0][j] + Q[i][1] * S[1][j] + Q[i][2] * S[2][j];
-        // Voigt order: (0 0), (1 1), (2 2), (0 1), (1 2), (0 2).
-        constexpr int row[6] = {0, 1, 2, 0, 1, 0}, col[6] = {0, 1, 2, 1, 2, 2};
-        for (int m = 0; m < 6; ++m) {
-            const int i = row[m], j = col[m];
-            const V g = QS[i][0] * Q[j][0] + QS[i][1] * Q[j][1] + QS[i][2] * Q[j][2];
-            r[m] = in_plane ? r[m] : g;
-        }
-    }
-    for (int i = 0; i < 6; ++i)
-        sig[i] = still ? sig[i] : r[i];
-    return true;
-}
-
 // A vector of N doubles (a dependent vector_size in a function template is
 // not one in GCC 12).
 template <int N>
@@ -203,16 +149,26 @@ block_packs(ParticleSet &s, std::size_t begin, std::size_t count, const double *
         }
         V J;
         deformation<D>(F0, Lv, dt, F1, J);
-        bool inverted = false;
+        bool one_by_one = false; // an inverted point, or a spin off the plane
         for (int i = 0; i < N; ++i)
-            inverted |= !(J[i] > 0.0);
+            one_by_one |= !(J[i] > 0.0);
         V sig[6];
         if constexpr (Rotate) {
             for (int c = 0; c < 6; ++c)
                 load_lanes<N>(&s.stress[6 * p + static_cast<std::size_t>(c)], 6, sig[c]);
-            if (!inverted && !rotate_pack<D>(Lv, dt, sig)) inverted = true;
+            // In plane strain the spin is about z (the gradient has no
+            // out-of-plane part); a pack where it is not, goes point by point.
+            bool about_z = true;
+            if constexpr (D == 2)
+                for (int c : {2, 5, 6, 7})
+                    for (int i = 0; i < N; ++i)
+                        about_z &= Lv[c][i] == 0.0;
+            if (!about_z)
+                one_by_one = true;
+            else if (!one_by_one)
+                hughes_winget_lanes<D == 3>(Lv, dt, sig);
         }
-        if (inverted) [[unlikely]] {
+        if (one_by_one) [[unlikely]] {
             const std::size_t done = by_point(k, k + N);
             if (done < k + N) return done;
             continue;

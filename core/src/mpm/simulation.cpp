@@ -136,9 +136,8 @@ Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options, const Sn
       sets(restore ? make_sets(sc, columns_of(sc.solver), instances)
                    : initial_particles(sc, stages, first_id, instances, comm)),
       order(grid.geo, sets.size()), loads(sc, stages[0].conditions, Vec3{0, 0, 0}, 0.0),
-      domain(domain_of(sc, stages[0].conditions)),
-      materials(names_of(sc, sets), opt.batch_size, sc.cell, talus::kernel_isa()),
-      variant(variant_of(sc.solver)), isa(talus::kernel_isa()),
+      domain(domain_of(sc, stages[0].conditions)), isa(talus::kernel_isa()),
+      materials(names_of(sc, sets), opt.batch_size, sc.cell, isa), variant(variant_of(sc.solver)),
       velocity_motion(velocity_motion_of(sc.solver)) {
     for (const GroupSpec &g : sc.groups)
         group_names.push_back(g.name);

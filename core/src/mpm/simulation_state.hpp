@@ -83,10 +83,10 @@ struct Simulation::Impl {
     Loads loads;
     Domain domain;
     StepEndBlocks step_ends; // the step's end pass, or its blocks in the fused USL pass
+    Isa isa; // the kernels' instruction set (transfers, kinematics), the widest this CPU has
     MaterialUpdate materials;
     DilationCells dilation;
     StepVariant variant;
-    Isa isa;                // the transfer kernels' instruction set, the widest this CPU has
     Motion velocity_motion; // how g2p_velocity moves the particles
     std::vector<std::string> group_names;
 

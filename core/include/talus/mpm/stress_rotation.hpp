@@ -10,45 +10,64 @@ namespace talus {
 // Cayley transform has the closed form Q = I + 2 (A + A^2) / (1 + |a|^2),
 // a the axial vector of A; Q is exactly orthogonal, so the rotated stress
 // keeps its invariants.
-[[gnu::always_inline]] inline void hughes_winget(const double *L, double dt, double *sig) {
-    const double a1 = 0.25 * dt * (L[7] - L[5]); // A_zy
-    const double a2 = 0.25 * dt * (L[2] - L[6]); // A_xz
-    const double a3 = 0.25 * dt * (L[3] - L[1]); // A_yx
-    const double aa = a1 * a1 + a2 * a2 + a3 * a3;
-    if (aa == 0.0) return;
-    const double c = 2.0 / (1.0 + aa);
-    if (a1 == 0.0 && a2 == 0.0) {
-        // In-plane spin (always so in 2D): a rotation about z by the angle
-        // with cos = 1 - c a3^2, sin = c a3.
-        const double co = 1.0 - c * a3 * a3, si = c * a3;
-        const double sxx = sig[0], syy = sig[1], sxy = sig[3], syz = sig[4], sxz = sig[5];
-        const double cc = co * co, ss = si * si, cs = co * si;
-        sig[0] = cc * sxx - 2.0 * cs * sxy + ss * syy;
-        sig[1] = ss * sxx + 2.0 * cs * sxy + cc * syy;
-        sig[3] = cs * (sxx - syy) + (cc - ss) * sxy;
-        sig[5] = co * sxz - si * syz;
-        sig[4] = si * sxz + co * syz;
+//
+// T is double, or a vector of doubles with one point per lane (the
+// solver's kinematics, kinematics.cpp); L is indexable by 0..8 (row-major,
+// of T or double). The three cases (no spin: no change; a spin about z
+// alone, always so in plane strain: a plane rotation; any other: Q s Q^T)
+// are computed and chosen per lane, so that a point gets the same bits
+// whether alone or in a vector. AnyAxis false: the caller knows that every
+// lane spins about z or not at all (L_xz, L_zx, L_yz, L_zy zero), and the
+// general case, a third of the work in plane strain, is left out.
+template <bool AnyAxis, class T, class Lm>
+[[gnu::always_inline]] inline void hughes_winget_lanes(const Lm &L, double dt, T (&sig)[6]) {
+    const T a1 = 0.25 * dt * (L[7] - L[5]); // A_zy
+    const T a2 = 0.25 * dt * (L[2] - L[6]); // A_xz
+    const T a3 = 0.25 * dt * (L[3] - L[1]); // A_yx
+    const T aa = a1 * a1 + a2 * a2 + a3 * a3;
+    const T c = 2.0 / (1.0 + aa);
+    const T sxx = sig[0], syy = sig[1], szz = sig[2], sxy = sig[3], syz = sig[4], sxz = sig[5];
+    // A spin about z alone: the angle with cos = 1 - c a3^2, sin = c a3.
+    const T co = 1.0 - c * a3 * a3, si = c * a3;
+    const T cc = co * co, ss = si * si, cs = co * si;
+    T r[6];
+    r[0] = cc * sxx - 2.0 * cs * sxy + ss * syy;
+    r[1] = ss * sxx + 2.0 * cs * sxy + cc * syy;
+    r[2] = szz;
+    r[3] = cs * (sxx - syy) + (cc - ss) * sxy;
+    r[5] = co * sxz - si * syz;
+    r[4] = si * sxz + co * syz;
+    const auto still = aa == 0.0;
+    if constexpr (!AnyAxis) {
+        for (int m = 0; m < 6; ++m)
+            sig[m] = still ? sig[m] : r[m];
         return;
     }
-    // A + A^2 with A^2 = a a^T - |a|^2 I.
-    double Q[3][3] = {{1.0 + c * (a1 * a1 - aa), c * (-a3 + a1 * a2), c * (a2 + a1 * a3)},
-                      {c * (a3 + a2 * a1), 1.0 + c * (a2 * a2 - aa), c * (-a1 + a2 * a3)},
-                      {c * (-a2 + a3 * a1), c * (a1 + a3 * a2), 1.0 + c * (a3 * a3 - aa)}};
-    const double S[3][3] = {
-        {sig[0], sig[3], sig[5]}, {sig[3], sig[1], sig[4]}, {sig[5], sig[4], sig[2]}};
-    double QS[3][3];
+    // Any other spin: A + A^2 with A^2 = a a^T - |a|^2 I.
+    const T Q[3][3] = {{1.0 + c * (a1 * a1 - aa), c * (-a3 + a1 * a2), c * (a2 + a1 * a3)},
+                       {c * (a3 + a2 * a1), 1.0 + c * (a2 * a2 - aa), c * (-a1 + a2 * a3)},
+                       {c * (-a2 + a3 * a1), c * (a1 + a3 * a2), 1.0 + c * (a3 * a3 - aa)}};
+    const T S[3][3] = {{sxx, sxy, sxz}, {sxy, syy, syz}, {sxz, syz, szz}};
+    T QS[3][3];
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j)
             QS[i][j] = Q[i][0] * S[0][j] + Q[i][1] * S[1][j] + Q[i][2] * S[2][j];
-    auto R = [&](int i, int j) {
-        return QS[i][0] * Q[j][0] + QS[i][1] * Q[j][1] + QS[i][2] * Q[j][2];
-    };
-    sig[0] = R(0, 0);
-    sig[1] = R(1, 1);
-    sig[2] = R(2, 2);
-    sig[3] = R(0, 1);
-    sig[4] = R(1, 2);
-    sig[5] = R(0, 2);
+    const auto about_z = (a1 == 0.0) & (a2 == 0.0);
+    // Voigt order: (0 0), (1 1), (2 2), (0 1), (1 2), (0 2).
+    constexpr int row[6] = {0, 1, 2, 0, 1, 0}, col[6] = {0, 1, 2, 1, 2, 2};
+    for (int m = 0; m < 6; ++m) {
+        const int i = row[m], j = col[m];
+        const T general = QS[i][0] * Q[j][0] + QS[i][1] * Q[j][1] + QS[i][2] * Q[j][2];
+        sig[m] = still ? sig[m] : about_z ? r[m] : general;
+    }
+}
+
+// The same for one point's Voigt stress.
+[[gnu::always_inline]] inline void hughes_winget(const double *L, double dt, double *sig) {
+    double s[6] = {sig[0], sig[1], sig[2], sig[3], sig[4], sig[5]};
+    hughes_winget_lanes<true>(L, dt, s);
+    for (int k = 0; k < 6; ++k)
+        sig[k] = s[k];
 }
 
 // The rotation matrix of the same increment, row-major: what
