@@ -33,54 +33,92 @@ namespace talus {
 inline constexpr int kLanes = static_cast<int>(node::kRecord);
 
 // A node record's worth of values: what a particle adds to each field of a
-// node per unit weight, gradient or offset, or what it gathers. Two types
-// with the same arithmetic, and the kernels are compiled with either:
+// node per unit weight, gradient or offset, or what it gathers. Three types
+// with the same arithmetic, one per instruction set the kernels are
+// compiled for:
 //
-//   Vec8: one vector of the compiler's vector extension, which it maps onto
-//         the target's widest registers (2 AVX2, 1 AVX-512). Used in the
-//         kernels compiled for those targets (isa.hpp); plain loops over 8
-//         doubles came out as scalar and half-register code there (GCC 12).
-//   Arr8: four 2-double vectors, for the baseline target (SSE2), where the
-//         compiler's lowering of Vec8 was three times slower.
+//   Vec8:  one vector of the compiler's vector extension, which it maps onto
+//          one AVX-512 register. Used in the AVX-512 kernels (isa.hpp);
+//          plain loops over 8 doubles came out as scalar and half-register
+//          code there (GCC 12).
+//   Split: 8 / N vectors of N doubles, the target's own registers: N = 2
+//          (Arr8) for the baseline target (SSE2), N = 4 (Quad8) for AVX2.
+//          Vec8 on those targets is lowered through the stack: setting one
+//          lane stores it there and the next use loads the whole vector
+//          back, which waits on the store. On SSE2 that was three times
+//          slower than Arr8; on AVX2, where the kernels used Vec8 until
+//          Quad8 came, a step took four to five times as long as with
+//          Quad8 (docs/performance.md).
 //
-// Both are passed by reference only: a vector by value would change the
+// All are passed by reference only: a vector by value would change the
 // calling convention with the target's vector width.
 typedef double Vec8 __attribute__((vector_size(8 * sizeof(double))));
 
-struct Arr8 {
-    // Four 2-double vectors: the baseline's registers, one each.
-    typedef double Pair __attribute__((vector_size(2 * sizeof(double))));
-    Pair q[kLanes / 2];
-    [[gnu::always_inline]] double operator[](std::size_t k) const { return q[k / 2][k % 2]; }
-    // A store of one double (an element assignment reads the pair first,
-    // which GCC 12 then reports as a read of an uninitialised value).
-    [[gnu::always_inline]] void set(std::size_t k, double x) {
-        std::memcpy(reinterpret_cast<char *>(q) + k * sizeof(double), &x, sizeof x);
+// Lane i of vector v becomes x.
+template <class V>
+[[gnu::always_inline]] inline void blend_lane(V &v, std::size_t i, double x) {
+    V lane{};
+    for (std::size_t j = 0; j < sizeof(V) / sizeof(double); ++j)
+        lane[j] = static_cast<double>(j);
+    v = lane == static_cast<double>(i) ? V{} + x : v;
+}
+
+template <int N>
+struct Split {
+    typedef double Part __attribute__((vector_size(N * sizeof(double))));
+    // The same vector at a double's alignment, for the loads and stores of
+    // node records (a memcpy of the whole struct was lowered in 16-byte
+    // pieces in the AVX2 kernels, the target attribute notwithstanding).
+    typedef double Unaligned
+        __attribute__((vector_size(N * sizeof(double)), aligned(8), may_alias));
+    Part q[kLanes / N];
+    [[gnu::always_inline]] double operator[](std::size_t k) const { return q[k / N][k % N]; }
+    // Lane k becomes x: a blend of x into its part (GCC 12 reports an
+    // element assignment as a read of an uninitialised part).
+    [[gnu::always_inline]] void set(std::size_t k, double x) { blend_lane(q[k / N], k % N, x); }
+    [[gnu::always_inline]] void load(const double *r) {
+        for (int i = 0; i < kLanes / N; ++i)
+            q[i] = *reinterpret_cast<const Unaligned *>(r + N * i);
     }
-    [[gnu::always_inline]] Arr8 &operator+=(const Arr8 &o) {
-        for (int i = 0; i < kLanes / 2; ++i)
+    [[gnu::always_inline]] void store(double *r) const {
+        for (int i = 0; i < kLanes / N; ++i)
+            *reinterpret_cast<Unaligned *>(r + N * i) = q[i];
+    }
+    [[gnu::always_inline]] Split &operator+=(const Split &o) {
+        for (int i = 0; i < kLanes / N; ++i)
             q[i] += o.q[i];
         return *this;
     }
-    [[gnu::always_inline]] friend Arr8 operator*(double s, const Arr8 &a) {
-        Arr8 r;
-        for (int i = 0; i < kLanes / 2; ++i)
+    [[gnu::always_inline]] friend Split operator*(double s, const Split &a) {
+        Split r;
+        for (int i = 0; i < kLanes / N; ++i)
             r.q[i] = s * a.q[i];
         return r;
     }
 };
+using Arr8 = Split<2>;
+using Quad8 = Split<4>;
 
-// Lane k of a record's worth of values, for either type.
+// Lane k of a record's worth of values, for any of the types.
 [[gnu::always_inline]] inline void set_lane(Vec8 &v, std::size_t k, double x) { v[k] = x; }
-[[gnu::always_inline]] inline void set_lane(Arr8 &v, std::size_t k, double x) { v.set(k, x); }
+template <int N>
+[[gnu::always_inline]] inline void set_lane(Split<N> &v, std::size_t k, double x) {
+    v.set(k, x);
+}
 
-template <class L>
-[[gnu::always_inline]] inline void load_record(const double *r, L &v) {
+[[gnu::always_inline]] inline void load_record(const double *r, Vec8 &v) {
     std::memcpy(&v, r, sizeof v); // one vector load, no aliasing question
 }
-template <class L>
-[[gnu::always_inline]] inline void store_record(double *r, const L &v) {
+[[gnu::always_inline]] inline void store_record(double *r, const Vec8 &v) {
     std::memcpy(r, &v, sizeof v);
+}
+template <int N>
+[[gnu::always_inline]] inline void load_record(const double *r, Split<N> &v) {
+    v.load(r);
+}
+template <int N>
+[[gnu::always_inline]] inline void store_record(double *r, const Split<N> &v) {
+    v.store(r);
 }
 
 template <int D, class S>
@@ -260,7 +298,7 @@ struct IsaVersions {
     using Args = typename Impl::Args;
     using Fn = void (*)(const Args &);
     static void generic(const Args &a) { Impl::template run<Arr8, Isa::generic>(a); }
-    TALUS_TARGET_AVX2 static void avx2(const Args &a) { Impl::template run<Vec8, Isa::avx2>(a); }
+    TALUS_TARGET_AVX2 static void avx2(const Args &a) { Impl::template run<Quad8, Isa::avx2>(a); }
     TALUS_TARGET_AVX512 static void avx512(const Args &a) {
         Impl::template run<Vec8, Isa::avx512>(a);
     }

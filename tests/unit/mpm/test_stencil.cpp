@@ -164,6 +164,7 @@ void check_with(talus::ShapeKind kind) {
 template <int D, class S>
 void check(talus::ShapeKind kind) {
     check_with<talus::Arr8, D, S>(kind);
+    check_with<talus::Quad8, D, S>(kind);
     check_with<talus::Vec8, D, S>(kind);
 }
 
