@@ -108,17 +108,17 @@ void on_fatal(int sig) {
             put(", updating material '");
             put(t->material);
             put("'");
-            if (t->group) {
+            if (t->group_names && t->group) {
                 put(", group '");
-                put(t->group);
+                put(t->group_names[*t->group]);
                 put("'");
             }
-            if (t->first_id >= 0) {
+            if (t->ids && t->count > 0) {
                 put(", particles ");
-                put_int(t->first_id);
-                if (t->last_id != t->first_id) {
+                put_int(t->ids[0]);
+                if (t->ids[t->count - 1] != t->ids[0]) {
                     put("..");
-                    put_int(t->last_id);
+                    put_int(t->ids[t->count - 1]);
                 }
             }
             if (t->step > 0) {
