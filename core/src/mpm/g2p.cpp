@@ -13,8 +13,8 @@ namespace talus {
 namespace {
 
 // With the material update fused in, the block's update reads each point's
-// F, stress, state, J and stress work for the first time in the step and
-// writes them and the wave speed: about 300 bytes a point in 3D, from
+// F, stress, state, J and stress work (and the initial volume) for the
+// first time in the step and writes them and the wave speed: about 300 bytes a point in 3D, from
 // memory. Asked for while the gather computes (a prefetch, for writing, per
 // cache line they start in), they arrive while it works instead of
 // stalling the update, which would wait for them at the memory's rate.
@@ -32,6 +32,7 @@ namespace {
         __builtin_prefetch(&s.J[p], 1, 3);
         __builtin_prefetch(&s.work[p], 1, 3);
         __builtin_prefetch(&s.c[p], 1, 3);
+        __builtin_prefetch(&s.vol0[p], 0, 3); // the stress work's volume, read only
     }
 }
 
