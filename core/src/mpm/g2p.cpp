@@ -64,9 +64,9 @@ struct G2pMotionKernel {
         // With the update fused in: the block's gradients, 9 per point.
         double *L_block = Kinematics ? args.blocks->buffer() : nullptr;
         std::size_t block_begin = args.begin;
-        auto body = [&](auto near, std::size_t p) __attribute__((always_inline)) {
-            St st;
-            st.template eval<decltype(near)::value, T::moments>(g, s, p);
+        // One particle, through its stencil st (a Stencil or a lane of a
+        // StencilPack).
+        auto finish = [&](const auto &st, std::size_t p) __attribute__((always_inline)) {
             // Sums over the nodes of the records (v, v~): by the weight,
             // the gradient and the weighted offset.
             Lanes sum, dsum[D], osum[D];
@@ -99,7 +99,7 @@ struct G2pMotionKernel {
                         s.L[9 * p + static_cast<std::size_t>(3 * r + c)] = L[r][c];
             }
             if constexpr (T::affine)
-                T::template affine_matrix<D>(B, L, st.dinv, bspline, &s.C[9 * p]);
+                T::template affine_matrix<D>(B, L, st.inverse_moments(), bspline, &s.C[9 * p]);
             // Particle velocity fixities override the grid's answer.
             if (const std::uint32_t mask = s.fix_mask[p]) {
                 loads.fix_velocity<D>(mask, vnew);
@@ -116,17 +116,42 @@ struct G2pMotionKernel {
                     s.dx[dd][p] = step[d];
             }
         };
+        auto body = [&](auto near, std::size_t p) __attribute__((always_inline)) {
+            St st;
+            st.template eval<decltype(near)::value, T::moments>(g, s, p);
+            finish(st, p);
+        };
         auto near_face = [&](std::size_t p) __attribute__((always_inline)) {
             body(std::true_type{}, p);
         };
+        auto one = [&](std::size_t p) __attribute__((always_inline)) {
+            if constexpr (Kinematics) prefetch_material(s, p);
+            if (St::interior(g, s, p)) [[likely]]
+                body(std::false_type{}, p);
+            else
+                OutOfLine<I>::call(near_face, p);
+        };
         auto points = [&](std::size_t begin, std::size_t end) __attribute__((always_inline)) {
-            for (std::size_t p = begin; p < end; ++p) {
-                if constexpr (Kinematics) prefetch_material(s, p);
-                if (St::interior(g, s, p)) [[likely]]
-                    body(std::false_type{}, p);
-                else
-                    OutOfLine<I>::call(near_face, p);
+            std::size_t p = begin;
+            if constexpr (requires { S::interior_margin; }) {
+                // Packs of N particles, their stencils evaluated together
+                // (as in P2G).
+                constexpr std::size_t N = kPointLanes<I>;
+                StencilPack<D, S, static_cast<int>(N)> pack;
+                for (; end - p >= N; p += N) {
+                    if (pack.template eval_run<T::moments>(g, s, p)) [[likely]] {
+                        for (std::size_t j = 0; j < N; ++j) {
+                            if constexpr (Kinematics) prefetch_material(s, p + j);
+                            finish(pack.lane(j), p + j);
+                        }
+                    } else {
+                        for (std::size_t j = 0; j < N; ++j)
+                            one(p + j);
+                    }
+                }
             }
+            for (; p < end; ++p)
+                one(p);
         };
         if constexpr (Kinematics) {
             const std::size_t B = args.blocks->block_size();

@@ -17,6 +17,8 @@
 // to the last bit, and so do runs on machines with different vector widths.
 #include "kinematics.hpp"
 
+#include "lanes.hpp"
+
 #include <algorithm>
 #include <cstring>
 #include <utility>
@@ -77,50 +79,6 @@ template <int D, bool Rotate>
     if (divv) divv[k] = L[0] + L[4] + L[8];
     if constexpr (Rotate) hughes_winget(L, dt, &s.stress[6 * p]);
     return true;
-}
-
-// A vector of N doubles (a dependent vector_size in a function template is
-// not one in GCC 12).
-template <int N>
-struct Lanes;
-template <>
-struct Lanes<2> {
-    typedef double V __attribute__((vector_size(2 * sizeof(double))));
-};
-template <>
-struct Lanes<4> {
-    typedef double V __attribute__((vector_size(4 * sizeof(double))));
-};
-template <>
-struct Lanes<8> {
-    typedef double V __attribute__((vector_size(8 * sizeof(double))));
-};
-
-// Lane k of v from base[k * stride], and back. (Vectors by reference: by
-// value they would change the calling convention with the target.) The
-// vector is built whole from its lanes, which the compiler does with
-// inserts in registers; through an array on the stack, a vector load of
-// eight scalar stores waits for them (no store forwarding): that made the
-// packs slower than the scalar code. GCC 12 reports the whole-vector
-// assignment as a read of an unset value, wrongly.
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#endif
-template <int N, class V>
-[[gnu::always_inline]] inline void load_lanes(const double *base, std::size_t stride, V &v) {
-    [&]<std::size_t... k>(std::index_sequence<k...>) __attribute__((always_inline)) {
-        v = V{base[k * stride]...};
-    }
-    (std::make_index_sequence<N>{});
-}
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic pop
-#endif
-template <int N, class V>
-[[gnu::always_inline]] inline void store_lanes(double *base, std::size_t stride, const V &v) {
-    for (int k = 0; k < N; ++k)
-        base[static_cast<std::size_t>(k) * stride] = v[k];
 }
 
 // The block in packs of N points, the rest point by point. A pack with an

@@ -20,9 +20,9 @@ template <class L, Isa I, int D, class S, bool Mass, bool Momentum, bool Affine,
     const GridGeometry &g = src.geo;
     const double *grav = src.loads.gravity();
     using St = Stencil<D, S>;
-    auto body = [&](auto near, std::size_t p) __attribute__((always_inline)) {
-        St st;
-        st.template eval<decltype(near)::value, Affine>(g, s, p);
+    // One particle's contributions, scattered through its stencil st (a
+    // Stencil or a lane of a StencilPack).
+    auto scatter = [&](const auto &st, std::size_t p) __attribute__((always_inline)) {
         const double m = s.mass[p];
         // Per unit weight: mass and momentum (eqs. 28-29) and the
         // external force (eq. 21); per unit gradient along c: the
@@ -69,16 +69,38 @@ template <class L, Isa I, int D, class S, bool Mass, bool Momentum, bool Affine,
                 bits = static_cast<double>(static_cast<std::uint32_t>(bits) | fixed);
             });
     };
+    auto body = [&](auto near, std::size_t p) __attribute__((always_inline)) {
+        St st;
+        st.template eval<decltype(near)::value, Affine>(g, s, p);
+        scatter(st, p);
+    };
     auto near_face = [&](std::size_t p) __attribute__((always_inline)) {
         body(std::true_type{}, p);
     };
-    for (const std::uint32_t *k = begin; k != end; ++k) {
-        const std::size_t p = *k;
+    auto one = [&](std::size_t p) __attribute__((always_inline)) {
         if (St::interior(g, s, p)) [[likely]]
             body(std::false_type{}, p);
         else
             OutOfLine<I>::call(near_face, p);
+    };
+    const std::uint32_t *k = begin;
+    if constexpr (requires { S::interior_margin; }) {
+        // Packs of N particles, their stencils evaluated together; a pack
+        // with a particle near a face goes one by one.
+        constexpr int N = kPointLanes<I>;
+        StencilPack<D, S, N> pack;
+        for (; end - k >= N; k += N) {
+            if (pack.template eval<Affine>(g, s, k)) [[likely]] {
+                for (int j = 0; j < N; ++j)
+                    scatter(pack.lane(static_cast<std::size_t>(j)), k[j]);
+            } else {
+                for (int j = 0; j < N; ++j)
+                    one(k[j]);
+            }
+        }
     }
+    for (; k != end; ++k)
+        one(*k);
 }
 
 template <int D, class S, bool Mass, bool Momentum, bool Affine, bool Forces>

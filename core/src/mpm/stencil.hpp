@@ -21,11 +21,13 @@
 
 #include "grid.hpp"
 #include "isa.hpp"
+#include "lanes.hpp"
 
 #include <talus/mpm/particles.hpp>
 #include <talus/mpm/shape_functions.hpp>
 
 #include <cstddef>
+#include <cstdint>
 #include <cstring>
 
 namespace talus {
@@ -121,8 +123,129 @@ template <int N>
     v.store(r);
 }
 
+// The sums every transfer is made of, over one particle's stencil: written
+// once on the stencil's per-axis factors, read through Self (a Stencil, or
+// one lane of a StencilPack): weight(d, k), slope(d, k) (dw/dx, 1/m),
+// weighted_offset(d, k) (w (x_i - x_p), m) and first(d) (the first node's
+// global number along d).
+template <class Self, int D, int W>
+struct StencilSums {
+    [[gnu::always_inline]] const Self &self() const { return static_cast<const Self &>(*this); }
+
+    // The local slot of the stencil's first node, and the slot strides of
+    // its rows (y) and layers (z).
+    struct Slots {
+        std::size_t first, row, layer;
+    };
+    [[gnu::always_inline]] Slots slots(const GridGeometry &g) const {
+        const std::size_t ex = static_cast<std::size_t>(g.extent[0]);
+        const std::size_t exy = ex * static_cast<std::size_t>(g.extent[1]);
+        std::size_t first = static_cast<std::size_t>(self().first(0) - g.first[0]) +
+                            ex * static_cast<std::size_t>(self().first(1) - g.first[1]);
+        if constexpr (D == 3) first += exy * static_cast<std::size_t>(self().first(2) - g.first[2]);
+        return {first, ex, exy};
+    }
+    // The slot of the first node of row b of layer c.
+    [[gnu::always_inline]] static std::size_t row_slot(const Slots &sl, int b, int c) {
+        return sl.first + static_cast<std::size_t>(b) * sl.row +
+               static_cast<std::size_t>(c) * sl.layer;
+    }
+
+    // Scatter: every node record gets
+    //   w_i a + sum_d (dw_i/dx_d) grad[d] + w_i sum_d (x_i - x_p)_d off[d]
+    // (Gradients, Offsets: whether grad and off are used).
+    template <bool Gradients, bool Offsets, class Lanes>
+    [[gnu::always_inline]] void scatter(const GridGeometry &g, double *records, const Lanes &a,
+                                        const Lanes (&grad)[D], const Lanes (&offs)[D]) const {
+        const Self &st = self();
+        const Slots sl = slots(g);
+        for (int c = 0; c < (D == 3 ? W : 1); ++c)
+            for (int b = 0; b < W; ++b) {
+                // The row's factors: what node x of the row gets is
+                // w_x(x) P + dw_x(x) Q + w_x(x) off_x(x) R.
+                const double wz = D == 3 ? st.weight(D - 1, c) : 1.0;
+                const double wyz = st.weight(1, b) * wz;
+                Lanes P = wyz * a, Q{}, R{};
+                if constexpr (Gradients) {
+                    P += (st.slope(1, b) * wz) * grad[1];
+                    if constexpr (D == 3) P += (st.weight(1, b) * st.slope(2, c)) * grad[2];
+                    Q = wyz * grad[0];
+                }
+                if constexpr (Offsets) {
+                    P += (wyz * st.offset(1, b)) * offs[1];
+                    if constexpr (D == 3) P += (wyz * st.offset(2, c)) * offs[2];
+                    R = wyz * offs[0];
+                }
+                double *row = records + node::kRecord * row_slot(sl, b, c);
+                for (int x = 0; x < W; ++x) {
+                    double *rec = row + node::kRecord * static_cast<std::size_t>(x);
+                    Lanes r;
+                    load_record(rec, r);
+                    r += st.weight(0, x) * P;
+                    if constexpr (Gradients) r += st.slope(0, x) * Q;
+                    if constexpr (Offsets) r += st.weighted_offset(0, x) * R;
+                    store_record(rec, r);
+                }
+            }
+    }
+
+    // Gather: sum_i w_i r_i into `value`, sum_i (dw_i/dx_d) r_i into
+    // grad[d], and sum_i w_i (x_i - x_p)_d r_i into offs[d], over the node
+    // records r_i (Gradients, Offsets: whether grad and off are wanted).
+    template <bool Gradients, bool Offsets, class Lanes>
+    [[gnu::always_inline]] void gather(const GridGeometry &g, const double *records, Lanes &value,
+                                       Lanes (&grad)[D], Lanes (&offs)[D]) const {
+        const Self &st = self();
+        const Slots sl = slots(g);
+        value = Lanes{};
+        for (int d = 0; d < D; ++d)
+            grad[d] = offs[d] = Lanes{};
+        for (int c = 0; c < (D == 3 ? W : 1); ++c)
+            for (int b = 0; b < W; ++b) {
+                const double *row = records + node::kRecord * row_slot(sl, b, c);
+                // The row's sums over x: by w_x, dw_x and w_x off_x.
+                Lanes S0{}, S1{}, S2{};
+                for (int x = 0; x < W; ++x) {
+                    Lanes r;
+                    load_record(row + node::kRecord * static_cast<std::size_t>(x), r);
+                    S0 += st.weight(0, x) * r;
+                    if constexpr (Gradients) S1 += st.slope(0, x) * r;
+                    if constexpr (Offsets) S2 += st.weighted_offset(0, x) * r;
+                }
+                const double wz = D == 3 ? st.weight(D - 1, c) : 1.0;
+                const double wyz = st.weight(1, b) * wz;
+                value += wyz * S0;
+                if constexpr (Gradients) {
+                    grad[0] += wyz * S1;
+                    grad[1] += (st.slope(1, b) * wz) * S0;
+                    if constexpr (D == 3) grad[2] += (st.weight(1, b) * st.slope(2, c)) * S0;
+                }
+                if constexpr (Offsets) {
+                    offs[0] += wyz * S2;
+                    offs[1] += (wyz * st.offset(1, b)) * S0;
+                    if constexpr (D == 3) offs[2] += (wyz * st.offset(2, c)) * S0;
+                }
+            }
+    }
+
+    // Calls f(slot) for every node with w_i > 0 (the rare per-node work:
+    // the fixity a fixed particle gives the nodes it reaches).
+    template <class F>
+    void for_each_reached_node(const GridGeometry &g, F &&f) const {
+        const Self &st = self();
+        const Slots sl = slots(g);
+        for (int c = 0; c < (D == 3 ? W : 1); ++c)
+            for (int b = 0; b < W; ++b)
+                for (int x = 0; x < W; ++x)
+                    if (st.weight(0, x) * st.weight(1, b) * (D == 3 ? st.weight(D - 1, c) : 1.0) >
+                        0.0)
+                        f(row_slot(sl, b, c) + static_cast<std::size_t>(x));
+    }
+};
+
+// One particle's stencil.
 template <int D, class S>
-struct Stencil {
+struct Stencil : StencilSums<Stencil<D, S>, D, S::width> {
     static constexpr int W = S::width;
     int base[D];        // first node per axis (global node numbers)
     double w[D][W];     // weights per axis
@@ -134,6 +257,13 @@ struct Stencil {
     // terms factor into sum_a w_a (x_a - x_p) = 0), h^2/4 (quadratic) or
     // h^2/3 (cubic) away from the faces (Jiang et al. 2015).
     double dinv[D];
+
+    [[gnu::always_inline]] double weight(int d, int k) const { return w[d][k]; }
+    [[gnu::always_inline]] double slope(int d, int k) const { return dw[d][k]; }
+    [[gnu::always_inline]] double offset(int d, int k) const { return off[d][k]; }
+    [[gnu::always_inline]] double weighted_offset(int d, int k) const { return w_off[d][k]; }
+    [[gnu::always_inline]] int first(int d) const { return base[d]; }
+    [[gnu::always_inline]] const double *inverse_moments() const { return dinv; }
 
     // Almost every particle is away from the faces, where the uniform kernel
     // holds. The hot kernels test this once per particle and run their
@@ -181,111 +311,93 @@ struct Stencil {
             }
         }
     }
+};
 
-    // The local slot of the stencil's first node, and the slot strides of
-    // its rows (y) and layers (z).
-    struct Slots {
-        std::size_t first, row, layer;
+// The stencils of N particles away from the faces, evaluated together with
+// one particle a vector lane (lanes.hpp): the weights' arithmetic, the
+// same operations as Stencil::eval's, costs a pack what it costs one
+// particle. The sums then run particle by particle, each on its lane of
+// the pack's factors (lane(j)), read from memory as the broadcasts they
+// need anyway. For the kernels whose pieces are the same polynomials
+// everywhere away from the faces (the B-splines: S::pieces).
+template <int D, class S, int N>
+struct StencilPack {
+    static constexpr int W = S::width;
+    using V = typename Lanes<N>::V;
+    int base[D][N];
+    double w[D][W][N], dw[D][W][N], off[D][W][N], w_off[D][W][N];
+    double dinv[D]; // as Stencil's, the same for every particle away from the faces
+
+    struct Lane : StencilSums<Lane, D, W> {
+        const StencilPack *pk;
+        std::size_t j;
+        [[gnu::always_inline]] double weight(int d, int k) const { return pk->w[d][k][j]; }
+        [[gnu::always_inline]] double slope(int d, int k) const { return pk->dw[d][k][j]; }
+        [[gnu::always_inline]] double offset(int d, int k) const { return pk->off[d][k][j]; }
+        [[gnu::always_inline]] double weighted_offset(int d, int k) const {
+            return pk->w_off[d][k][j];
+        }
+        [[gnu::always_inline]] int first(int d) const { return pk->base[d][j]; }
+        [[gnu::always_inline]] const double *inverse_moments() const { return pk->dinv; }
     };
-    [[gnu::always_inline]] Slots slots(const GridGeometry &g) const {
-        const std::size_t ex = static_cast<std::size_t>(g.extent[0]);
-        const std::size_t exy = ex * static_cast<std::size_t>(g.extent[1]);
-        std::size_t first = static_cast<std::size_t>(base[0] - g.first[0]) +
-                            ex * static_cast<std::size_t>(base[1] - g.first[1]);
-        if constexpr (D == 3) first += exy * static_cast<std::size_t>(base[2] - g.first[2]);
-        return {first, ex, exy};
-    }
-    // The slot of the first node of row b of layer c.
-    [[gnu::always_inline]] static std::size_t row_slot(const Slots &sl, int b, int c) {
-        return sl.first + static_cast<std::size_t>(b) * sl.row +
-               static_cast<std::size_t>(c) * sl.layer;
+    [[gnu::always_inline]] Lane lane(std::size_t j) const {
+        Lane l;
+        l.pk = this;
+        l.j = j;
+        return l;
     }
 
-    // Scatter: every node record gets
-    //   w_i a + sum_d (dw_i/dx_d) grad[d] + w_i sum_d (x_i - x_p)_d off[d]
-    // (Gradients, Offsets: whether grad and off are used).
-    template <bool Gradients, bool Offsets, class Lanes>
-    [[gnu::always_inline]] void scatter(const GridGeometry &g, double *records, const Lanes &a,
-                                        const Lanes (&grad)[D], const Lanes (&offs)[D]) const {
-        const Slots sl = slots(g);
-        for (int c = 0; c < (D == 3 ? W : 1); ++c)
-            for (int b = 0; b < W; ++b) {
-                // The row's factors: what node x of the row gets is
-                // w_x(x) P + dw_x(x) Q + w_x(x) off_x(x) R.
-                const double wz = D == 3 ? w[D - 1][c] : 1.0;
-                const double wyz = w[1][b] * wz;
-                Lanes P = wyz * a, Q{}, R{};
-                if constexpr (Gradients) {
-                    P += (dw[1][b] * wz) * grad[1];
-                    if constexpr (D == 3) P += (w[1][b] * dw[2][c]) * grad[2];
-                    Q = wyz * grad[0];
-                }
+    // The pack of particles index[0..N) of s (eval), or first .. first + N
+    // (eval_run); false, with nothing done, if one of them is near a face
+    // (Stencil::interior). Offsets: also off, w_off and dinv.
+    template <bool Offsets>
+    [[gnu::always_inline]] bool eval(const GridGeometry &g, const ParticleSet &s,
+                                     const std::uint32_t *index) {
+        return eval_with<Offsets>(
+            g, [&](std::size_t d, V & x)
+                   __attribute__((always_inline)) { load_indexed<N>(s.x[d].data(), index, x); });
+    }
+    template <bool Offsets>
+    [[gnu::always_inline]] bool eval_run(const GridGeometry &g, const ParticleSet &s,
+                                         std::size_t first) {
+        return eval_with<Offsets>(
+            g, [&](std::size_t d, V & x)
+                   __attribute__((always_inline)) { load_vector<N>(&s.x[d][first], x); });
+    }
+    template <bool Offsets, class Load>
+    [[gnu::always_inline]] bool eval_with(const GridGeometry &g, const Load &load) {
+        V xi[D];
+        bool inner = true;
+        for (int d = 0; d < D; ++d) {
+            const std::size_t dd = static_cast<std::size_t>(d);
+            V x;
+            load(dd, x);
+            xi[d] = (x - g.origin[dd]) * g.inv_h;
+            const double hi = g.cells[dd] - S::interior_margin;
+            for (int j = 0; j < N; ++j)
+                inner &= xi[d][j] >= S::interior_margin && xi[d][j] < hi;
+        }
+        if (!inner) return false;
+        for (int d = 0; d < D; ++d) {
+            V fl;
+            floor_lanes<N>(xi[d] - S::floor_shift, fl);
+            V wv[W], dwv[W];
+            S::pieces(xi[d], fl, wv, dwv);
+            const V first = fl + static_cast<double>(S::base_offset);
+            for (int j = 0; j < N; ++j)
+                base[d][j] = static_cast<int>(first[j]);
+            for (int k = 0; k < W; ++k) {
+                store_vector<N>(w[d][k], wv[k]);
+                store_vector<N>(dw[d][k], dwv[k] * g.inv_h);
                 if constexpr (Offsets) {
-                    P += (wyz * off[1][b]) * offs[1];
-                    if constexpr (D == 3) P += (wyz * off[2][c]) * offs[2];
-                    R = wyz * offs[0];
-                }
-                double *row = records + node::kRecord * row_slot(sl, b, c);
-                for (int x = 0; x < W; ++x) {
-                    double *rec = row + node::kRecord * static_cast<std::size_t>(x);
-                    Lanes r;
-                    load_record(rec, r);
-                    r += w[0][x] * P;
-                    if constexpr (Gradients) r += dw[0][x] * Q;
-                    if constexpr (Offsets) r += w_off[0][x] * R;
-                    store_record(rec, r);
+                    const V o = (first + static_cast<double>(k) - xi[d]) * g.h;
+                    store_vector<N>(off[d][k], o);
+                    store_vector<N>(w_off[d][k], wv[k] * o);
                 }
             }
-    }
-
-    // Gather: sum_i w_i r_i into `value`, sum_i (dw_i/dx_d) r_i into
-    // grad[d], and sum_i w_i (x_i - x_p)_d r_i into offs[d], over the node
-    // records r_i (Gradients, Offsets: whether grad and off are wanted).
-    template <bool Gradients, bool Offsets, class Lanes>
-    [[gnu::always_inline]] void gather(const GridGeometry &g, const double *records, Lanes &value,
-                                       Lanes (&grad)[D], Lanes (&offs)[D]) const {
-        const Slots sl = slots(g);
-        value = Lanes{};
-        for (int d = 0; d < D; ++d)
-            grad[d] = offs[d] = Lanes{};
-        for (int c = 0; c < (D == 3 ? W : 1); ++c)
-            for (int b = 0; b < W; ++b) {
-                const double *row = records + node::kRecord * row_slot(sl, b, c);
-                // The row's sums over x: by w_x, dw_x and w_x off_x.
-                Lanes S0{}, S1{}, S2{};
-                for (int x = 0; x < W; ++x) {
-                    Lanes r;
-                    load_record(row + node::kRecord * static_cast<std::size_t>(x), r);
-                    S0 += w[0][x] * r;
-                    if constexpr (Gradients) S1 += dw[0][x] * r;
-                    if constexpr (Offsets) S2 += w_off[0][x] * r;
-                }
-                const double wz = D == 3 ? w[D - 1][c] : 1.0;
-                const double wyz = w[1][b] * wz;
-                value += wyz * S0;
-                if constexpr (Gradients) {
-                    grad[0] += wyz * S1;
-                    grad[1] += (dw[1][b] * wz) * S0;
-                    if constexpr (D == 3) grad[2] += (w[1][b] * dw[2][c]) * S0;
-                }
-                if constexpr (Offsets) {
-                    offs[0] += wyz * S2;
-                    offs[1] += (wyz * off[1][b]) * S0;
-                    if constexpr (D == 3) offs[2] += (wyz * off[2][c]) * S0;
-                }
-            }
-    }
-
-    // Calls f(slot) for every node with w_i > 0 (the rare per-node work:
-    // the fixity a fixed particle gives the nodes it reaches).
-    template <class F>
-    void for_each_reached_node(const GridGeometry &g, F &&f) const {
-        const Slots sl = slots(g);
-        for (int c = 0; c < (D == 3 ? W : 1); ++c)
-            for (int b = 0; b < W; ++b)
-                for (int x = 0; x < W; ++x)
-                    if (w[0][x] * w[1][b] * (D == 3 ? w[D - 1][c] : 1.0) > 0.0)
-                        f(row_slot(sl, b, c) + static_cast<std::size_t>(x));
+            if constexpr (Offsets) dinv[d] = g.affine_dinv;
+        }
+        return true;
     }
 };
 

@@ -188,6 +188,87 @@ TEST(Stencil, CubicBSplineMatchesTheNodeByNodeSums) {
     check<3, talus::BSpline3Shape>(talus::ShapeKind::bspline3);
 }
 
+namespace {
+
+// A pack's lanes (StencilPack, N particles evaluated together) are the
+// per-particle stencils, bit for bit: the same operations in the same order
+// in every lane. Exact equality is the claim (the kernels' results do not
+// depend on where a particle falls in a pack); a pack with a particle near
+// a face is refused whole and left to the per-particle path.
+template <int N, int D, class S>
+void check_pack(talus::ShapeKind kind) {
+    constexpr int W = S::width;
+    talus::Grid grid(D, {0.0, 0.0, 0.0}, {1.0, 0.8, 0.6}, 0.1, kind);
+    const GridGeometry &g = grid.geo;
+    ParticleSet set;
+    set.dim = D;
+    set.has_L = set.has_dx = set.has_C = set.has_divv = false;
+    constexpr std::size_t n = 64;
+    set.resize(n);
+    std::mt19937_64 rng(5);
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    // Positions away from the faces by more than the interior margin.
+    for (std::size_t p = 0; p < n; ++p)
+        for (int d = 0; d < D; ++d) {
+            const double L = g.cells[static_cast<std::size_t>(d)] * g.h;
+            const double m = (S::interior_margin + 0.01) * g.h;
+            set.x[static_cast<std::size_t>(d)][p] = m + unit(rng) * (L - 2.0 * m);
+        }
+    // Gathered in a scrambled order (eval), and in a run (eval_run).
+    std::vector<std::uint32_t> index(n);
+    for (std::size_t p = 0; p < n; ++p)
+        index[p] = static_cast<std::uint32_t>((p * 37) % n);
+    auto same = [&](const talus::StencilPack<D, S, N> &pk, std::size_t j, std::size_t p) {
+        using St = talus::Stencil<D, S>;
+        ASSERT_TRUE(St::interior(g, set, p));
+        St st;
+        st.template eval<false, true>(g, set, p);
+        for (int d = 0; d < D; ++d) {
+            ASSERT_EQ(pk.base[d][j], st.base[d]) << "particle " << p << " axis " << d;
+            ASSERT_EQ(pk.dinv[d], st.dinv[d]);
+            for (int k = 0; k < W; ++k) {
+                ASSERT_EQ(pk.w[d][k][j], st.w[d][k]) << "particle " << p << " axis " << d;
+                ASSERT_EQ(pk.dw[d][k][j], st.dw[d][k]) << "particle " << p << " axis " << d;
+                ASSERT_EQ(pk.off[d][k][j], st.off[d][k]) << "particle " << p << " axis " << d;
+                ASSERT_EQ(pk.w_off[d][k][j], st.w_off[d][k]) << "particle " << p;
+            }
+        }
+    };
+    talus::StencilPack<D, S, N> pk;
+    for (std::size_t first = 0; first + N <= n; first += N) {
+        ASSERT_TRUE(pk.template eval<true>(g, set, &index[first]));
+        for (std::size_t j = 0; j < N; ++j)
+            same(pk, j, index[first + j]);
+        ASSERT_TRUE(pk.template eval_run<true>(g, set, first));
+        for (std::size_t j = 0; j < N; ++j)
+            same(pk, j, first + j);
+    }
+    // One particle of the pack just inside the margin of a face, then just
+    // inside the other face's: the pack is refused.
+    for (const double at : {S::interior_margin - 1e-9, g.cells[0] - S::interior_margin + 1e-9}) {
+        const double saved = set.x[0][N - 1];
+        set.x[0][N - 1] = at * g.h;
+        EXPECT_FALSE(pk.template eval_run<true>(g, set, 0)) << "near-face position " << at;
+        set.x[0][N - 1] = saved;
+    }
+}
+
+template <int D, class S>
+void check_packs(talus::ShapeKind kind) {
+    check_pack<2, D, S>(kind);
+    check_pack<4, D, S>(kind);
+    check_pack<8, D, S>(kind);
+}
+
+} // namespace
+
+TEST(Stencil, PackLanesAreTheParticleStencilsBitForBit) {
+    check_packs<2, talus::BSpline2Shape>(talus::ShapeKind::bspline2);
+    check_packs<3, talus::BSpline2Shape>(talus::ShapeKind::bspline2);
+    check_packs<2, talus::BSpline3Shape>(talus::ShapeKind::bspline3);
+    check_packs<3, talus::BSpline3Shape>(talus::ShapeKind::bspline3);
+}
+
 // The transfer kernels' versions for each instruction set (isa.hpp) are one
 // source compiled for different vector widths: they differ only in the
 // rounding of fused multiply-adds and the order of a few sums, so their

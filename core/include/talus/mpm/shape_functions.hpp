@@ -183,13 +183,17 @@ struct GimpShape {
 struct BSpline2Shape {
     static constexpr int width = 3;
     static constexpr bool half_width = false;
-    static inline void eval(double xi, double /*lp*/, int &base, double *w, double *dw) {
-        const double fl = fast_floor(xi - 0.5);
-        base = static_cast<int>(fl);
-        const double r0 = xi - fl;  // distance to node base, in [0.5, 1.5)
-        const double a = 1.5 - r0;  // in (0, 1]
-        const double r1 = r0 - 1.0; // in [-0.5, 0.5)
-        const double c = r0 - 0.5;  // 1.5 + r2, in [0, 1)
+    // eval() in two parts, the second for a double or a vector of them (one
+    // point a lane, the transfer kernels' packs): fl = floor(xi -
+    // floor_shift), the first node base = fl + base_offset, and the pieces.
+    static constexpr double floor_shift = 0.5;
+    static constexpr int base_offset = 0;
+    template <class T>
+    [[gnu::always_inline]] static inline void pieces(const T &xi, const T &fl, T *w, T *dw) {
+        const T r0 = xi - fl;  // distance to node base, in [0.5, 1.5)
+        const T a = 1.5 - r0;  // in (0, 1]
+        const T r1 = r0 - 1.0; // in [-0.5, 0.5)
+        const T c = r0 - 0.5;  // 1.5 + r2, in [0, 1)
         w[0] = 0.5 * a * a;
         w[1] = 0.75 - r1 * r1;
         w[2] = 0.5 * c * c;
@@ -197,12 +201,20 @@ struct BSpline2Shape {
         dw[1] = -2.0 * r1;
         dw[2] = c;
     }
+    static inline void eval(double xi, double /*lp*/, int &base, double *w, double *dw) {
+        const double fl = fast_floor(xi - floor_shift);
+        base = static_cast<int>(fl) + base_offset;
+        pieces(xi, fl, w, dw);
+    }
     // Where the clamped functions are the uniform ones: a B-spline's piece
     // on its last knot interval, (t_p+1 - x)^p / prod_j=1..p (t_p+1 - t_j),
     // depends on its inner knots only, and node 1's (1/2, 3/2) are not
     // clamped; the first pieces mirror this at the upper face. So only
     // 0 <= xi < 3/2 (and n - 3/2 <= xi <= n) differ (tested).
-    static bool interior(double xi, int n) { return xi >= 1.5 && xi < n - 1.5; }
+    static constexpr double interior_margin = 1.5;
+    static bool interior(double xi, int n) {
+        return xi >= interior_margin && xi < n - interior_margin;
+    }
     static void eval_bounded(double xi, double /*lp*/, int n, int &base, double *w, double *dw,
                              double *g) {
         bounded_bspline<BSpline2Shape, 2>(xi, n, base, w, dw, g);
@@ -213,11 +225,13 @@ struct BSpline2Shape {
 struct BSpline3Shape {
     static constexpr int width = 4;
     static constexpr bool half_width = false;
-    static inline void eval(double xi, double /*lp*/, int &base, double *w, double *dw) {
-        const double fl = fast_floor(xi);
-        base = static_cast<int>(fl) - 1;
-        const double t = xi - fl; // in [0, 1)
-        const double u = 1.0 - t;
+    // As for the quadratic (pieces, for doubles or vectors of them).
+    static constexpr double floor_shift = 0.0;
+    static constexpr int base_offset = -1;
+    template <class T>
+    [[gnu::always_inline]] static inline void pieces(const T &xi, const T &fl, T *w, T *dw) {
+        const T t = xi - fl; // in [0, 1)
+        const T u = 1.0 - t;
         // r = xi - node: 1 + t, t, t - 1, t - 2.
         w[0] = u * u * u / 6.0;
         w[1] = 2.0 / 3.0 - t * t + 0.5 * t * t * t;
@@ -228,9 +242,17 @@ struct BSpline3Shape {
         dw[2] = 2.0 * u - 1.5 * u * u;
         dw[3] = 0.5 * t * t;
     }
+    static inline void eval(double xi, double /*lp*/, int &base, double *w, double *dw) {
+        const double fl = fast_floor(xi - floor_shift);
+        base = static_cast<int>(fl) + base_offset;
+        pieces(xi, fl, w, dw);
+    }
     // As for the quadratic: node 1's inner knots (0, 1, 2) are unclamped, so
     // only 0 <= xi < 2 (and n - 2 <= xi <= n) differ (tested).
-    static bool interior(double xi, int n) { return xi >= 2.0 && xi < n - 2.0; }
+    static constexpr double interior_margin = 2.0;
+    static bool interior(double xi, int n) {
+        return xi >= interior_margin && xi < n - interior_margin;
+    }
     static void eval_bounded(double xi, double /*lp*/, int n, int &base, double *w, double *dw,
                              double *g) {
         bounded_bspline<BSpline3Shape, 3>(xi, n, base, w, dw, g);
