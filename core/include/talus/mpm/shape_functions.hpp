@@ -179,13 +179,28 @@ struct GimpShape {
     }
 };
 
+// What the uniform B-splines share, from Self's floor_shift, base_offset,
+// interior_margin and pieces: eval() in two parts, the second for a double
+// or a vector of them (one point a lane, the transfer kernels' packs):
+// fl = floor(xi - floor_shift), the first node base = fl + base_offset,
+// and the polynomial pieces; and interior(), where the clamped functions
+// are these uniform ones (xi at least interior_margin from either face).
+template <class Self>
+struct UniformBSpline {
+    static inline void eval(double xi, double /*lp*/, int &base, double *w, double *dw) {
+        const double fl = fast_floor(xi - Self::floor_shift);
+        base = static_cast<int>(fl) + Self::base_offset;
+        Self::pieces(xi, fl, w, dw);
+    }
+    static bool interior(double xi, int n) {
+        return xi >= Self::interior_margin && xi < n - Self::interior_margin;
+    }
+};
+
 // Quadratic B-spline (Steffen et al. 2008; seed 000 eqs. 24-25), node-centred.
-struct BSpline2Shape {
+struct BSpline2Shape : UniformBSpline<BSpline2Shape> {
     static constexpr int width = 3;
     static constexpr bool half_width = false;
-    // eval() in two parts, the second for a double or a vector of them (one
-    // point a lane, the transfer kernels' packs): fl = floor(xi -
-    // floor_shift), the first node base = fl + base_offset, and the pieces.
     static constexpr double floor_shift = 0.5;
     static constexpr int base_offset = 0;
     template <class T>
@@ -201,20 +216,12 @@ struct BSpline2Shape {
         dw[1] = -2.0 * r1;
         dw[2] = c;
     }
-    static inline void eval(double xi, double /*lp*/, int &base, double *w, double *dw) {
-        const double fl = fast_floor(xi - floor_shift);
-        base = static_cast<int>(fl) + base_offset;
-        pieces(xi, fl, w, dw);
-    }
     // Where the clamped functions are the uniform ones: a B-spline's piece
     // on its last knot interval, (t_p+1 - x)^p / prod_j=1..p (t_p+1 - t_j),
     // depends on its inner knots only, and node 1's (1/2, 3/2) are not
     // clamped; the first pieces mirror this at the upper face. So only
     // 0 <= xi < 3/2 (and n - 3/2 <= xi <= n) differ (tested).
     static constexpr double interior_margin = 1.5;
-    static bool interior(double xi, int n) {
-        return xi >= interior_margin && xi < n - interior_margin;
-    }
     static void eval_bounded(double xi, double /*lp*/, int n, int &base, double *w, double *dw,
                              double *g) {
         bounded_bspline<BSpline2Shape, 2>(xi, n, base, w, dw, g);
@@ -222,10 +229,9 @@ struct BSpline2Shape {
 };
 
 // Cubic B-spline (Steffen et al. 2008), node-centred.
-struct BSpline3Shape {
+struct BSpline3Shape : UniformBSpline<BSpline3Shape> {
     static constexpr int width = 4;
     static constexpr bool half_width = false;
-    // As for the quadratic (pieces, for doubles or vectors of them).
     static constexpr double floor_shift = 0.0;
     static constexpr int base_offset = -1;
     template <class T>
@@ -242,17 +248,9 @@ struct BSpline3Shape {
         dw[2] = 2.0 * u - 1.5 * u * u;
         dw[3] = 0.5 * t * t;
     }
-    static inline void eval(double xi, double /*lp*/, int &base, double *w, double *dw) {
-        const double fl = fast_floor(xi - floor_shift);
-        base = static_cast<int>(fl) + base_offset;
-        pieces(xi, fl, w, dw);
-    }
     // As for the quadratic: node 1's inner knots (0, 1, 2) are unclamped, so
     // only 0 <= xi < 2 (and n - 2 <= xi <= n) differ (tested).
     static constexpr double interior_margin = 2.0;
-    static bool interior(double xi, int n) {
-        return xi >= interior_margin && xi < n - interior_margin;
-    }
     static void eval_bounded(double xi, double /*lp*/, int n, int &base, double *w, double *dw,
                              double *g) {
         bounded_bspline<BSpline3Shape, 3>(xi, n, base, w, dw, g);
