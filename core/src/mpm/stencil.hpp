@@ -10,9 +10,13 @@
 // factorisation of spectral elements), a row of W nodes along x at a time,
 // with one or two multiply-adds of a whole node record (8 doubles, node::)
 // per node. A record is 8 consecutive doubles and a row is W consecutive
-// records; the record arithmetic is written on vector types (Vec8, Arr8
-// below), and each kernel is compiled once per instruction set
+// records; the record arithmetic is written on vector types (Vec8, Quad8,
+// Arr8 below), and each kernel is compiled once per instruction set
 // (IsaVersions, isa.hpp): on AVX-512 a record is one instruction.
+//
+// The stencils themselves are evaluated for N particles at once where the
+// kernel allows (StencilPack: the B-splines away from the faces), one
+// particle a vector lane; the sums then run particle by particle.
 //
 // The kernels see the domain's bounds (eval_bounded): the B-splines are
 // clamped at the faces (docs/theory.md, "Boundaries"); the clamped weights
