@@ -14,10 +14,10 @@ namespace {
 
 // With the material update fused in, the block's update reads each point's
 // F, stress, state, J and stress work (and the initial volume) for the
-// first time in the step and writes them and the wave speed: about 300 bytes a point in 3D, from
-// memory. Asked for while the gather computes (a prefetch, for writing, per
-// cache line they start in), they arrive while it works instead of
-// stalling the update, which would wait for them at the memory's rate.
+// first time in the step and writes them and the wave speed: about 300
+// bytes a point in 3D, from memory. Asked for while the gather computes (a prefetch, for writing,
+// per cache line they start in), they arrive while it works instead of stalling the update, which
+// would wait for them at the memory's rate.
 [[gnu::always_inline]] inline void prefetch_material(const ParticleSet &s, std::size_t p) {
     auto lines = [](const double *a, std::size_t n) __attribute__((always_inline)) {
         // The lines of [a, a + n): each starts within 8 doubles of the last.

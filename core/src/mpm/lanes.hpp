@@ -11,9 +11,10 @@
 
 namespace talus {
 
-// A vector of N doubles (V), of N 64-bit integers (I) and V at a double's
-// alignment (U: the type of a vector load or store at any double). Explicit per N: a dependent
-// vector_size in a template is not a vector in GCC 12.
+// A vector of N doubles (V), of N 64-bit integers (I), and V at a double's
+// alignment (U: the type of a vector load or store at any double).
+// Explicit per N: a dependent vector_size in a template is not a vector in
+// GCC 12.
 template <int N>
 struct Lanes;
 template <>

@@ -624,12 +624,15 @@ struct Descriptors {
                 // compiler chose (GCC wrote linear_elastic's as the pairs
                 // 0-1 and 1-2, then 3). A 16-byte load needing two of them
                 // waits until they reach the cache (no store forwarding):
-                // 45 % of linear_elastic's time sat on one such load. An
-                // 8-byte load forwards from any store holding it; the
-                // empty asm keeps the compiler from pairing the loads.
+                // 45 % of linear_elastic's batch loop sat on one such load.
+                // An 8-byte load forwards from any store holding it; the
+                // empty asm (GCC and clang) keeps the compiler from pairing
+                // the loads.
                 for (std::size_t e = 0; e < 6; ++e) {
                     b->stress_end[6 * k + e] = out.stress[static_cast<Eigen::Index>(e)];
+#if defined(__GNUC__) || defined(__clang__)
                     asm volatile("" ::: "memory");
+#endif
                 }
                 if (want_c) b->wave_speed[k] = c;
                 if (want_t) Eigen::Map<RowMat6>(b->tangent + 36 * k) = tangent;
