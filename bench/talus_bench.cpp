@@ -18,6 +18,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cstddef>
 #include <cstdio>
@@ -299,14 +300,25 @@ int main(int argc, char **argv) {
                 talus::SolverOptions so;
                 so.threads = threads;
                 so.comm = comm;
-                talus::Simulation sim(sc, so);
-                for (int w = 0; w < 2; ++w)
-                    sim.step(1.0); // warm caches and the allocator
+                // Every run starts from the scenario's initial state: a
+                // continued run would time a different state each time (a
+                // Mohr-Coulomb block goes from 0.3 % to 97 % plastic points
+                // over three runs), and best and median would then compare
+                // different work. Only the timed steps count in the phase
+                // shares, traffic and barriers.
                 std::vector<double> times;
-                const long regions0 = talus::Simulation::parallel_regions();
-                const talus::RankTraffic traffic0 = sim.traffic();
-                const auto phases0 = sim.phase_seconds();
+                long regions = 0;
+                std::size_t halo_bytes = 0, migration_bytes = 0;
+                std::array<double, talus::Simulation::kPhases> phases{};
+                double n = 0.0, particle_bytes = 0.0, rss = 0.0;
+                std::string isa;
                 for (int r = 0; r < repeat; ++r) {
+                    talus::Simulation sim(sc, so);
+                    for (int w = 0; w < 2; ++w)
+                        sim.step(1.0); // warm caches and the allocator
+                    const long regions0 = talus::Simulation::parallel_regions();
+                    const talus::RankTraffic traffic0 = sim.traffic();
+                    const auto phases0 = sim.phase_seconds();
                     // On several ranks: from a common start to the last
                     // rank's end.
                     comm.barrier();
@@ -317,54 +329,62 @@ int main(int argc, char **argv) {
                         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
                             .count();
                     times.push_back(comm.max(sec));
+                    regions += talus::Simulation::parallel_regions() - regions0;
+                    const talus::RankTraffic traffic1 = sim.traffic();
+                    halo_bytes += traffic1.halo_bytes - traffic0.halo_bytes;
+                    migration_bytes += traffic1.migration_bytes - traffic0.migration_bytes;
+                    const auto phases1 = sim.phase_seconds();
+                    for (std::size_t k = 0; k < phases.size(); ++k)
+                        phases[k] += phases1[k] - phases0[k];
+                    n = static_cast<double>(sim.particle_count());
+                    // Bytes of the particle arrays per particle.
+                    particle_bytes = 0.0;
+                    for (talus::ParticleSet &set : sim.sets())
+                        particle_bytes += static_cast<double>(set.bytes_per_particle()) *
+                                          static_cast<double>(set.n);
+                    isa = sim.kernel_isa();
+                    // The peak resident memory with the first simulation
+                    // alive (all ranks' peaks): the later ones reuse freed
+                    // memory that the allocator then keeps differently
+                    // (glibc raises its mmap threshold after a large free),
+                    // which a run of `talus` never sees.
+                    if (r == 0) {
+                        rusage usage{};
+                        getrusage(RUSAGE_SELF, &usage);
+                        rss = comm.sum(1024.0 * static_cast<double>(usage.ru_maxrss));
+                    }
                 }
                 // Per rank and step in the timed steps: the seconds in the
                 // halo sums and the migration, and the bytes sent (the
                 // most of any rank).
-                const talus::RankTraffic traffic1 = sim.traffic();
-                const auto phases1 = sim.phase_seconds();
                 const double timed = static_cast<double>(repeat) * steps;
                 auto per_step = [&](double v) { return comm.max(v) / timed; };
                 const int halo_k = talus::Simulation::kPhases - 2, mig_k = halo_k + 1;
-                const double halo_s = per_step(phases1[halo_k] - phases0[halo_k]);
-                const double mig_s = per_step(phases1[mig_k] - phases0[mig_k]);
-                const double halo_b =
-                    per_step(static_cast<double>(traffic1.halo_bytes - traffic0.halo_bytes));
-                const double mig_b = per_step(
-                    static_cast<double>(traffic1.migration_bytes - traffic0.migration_bytes));
+                const double halo_s = per_step(phases[halo_k]);
+                const double mig_s = per_step(phases[mig_k]);
+                const double halo_b = per_step(static_cast<double>(halo_bytes));
+                const double mig_b = per_step(static_cast<double>(migration_bytes));
                 std::sort(times.begin(), times.end());
                 const double best = times.front();
                 const std::size_t mid = times.size() / 2;
                 const double median =
                     times.size() % 2 ? times[mid] : 0.5 * (times[mid - 1] + times[mid]);
-                const double barriers =
-                    static_cast<double>(talus::Simulation::parallel_regions() - regions0) /
-                    (static_cast<double>(repeat) * steps);
-                const double n = static_cast<double>(sim.particle_count());
-                // Bytes of the particle arrays per particle, and the process's
+                const double barriers = static_cast<double>(regions) / timed;
+                // The particle arrays' bytes per particle, and the process's
                 // peak resident memory (grid, ordering and everything else
                 // included) per particle: the case's own peak when it runs
                 // alone (--case), else the largest so far.
-                double particle_bytes = 0.0;
-                for (talus::ParticleSet &set : sim.sets())
-                    particle_bytes +=
-                        static_cast<double>(set.bytes_per_particle()) * static_cast<double>(set.n);
                 particle_bytes = comm.sum(particle_bytes);
-                rusage usage{};
-                getrusage(RUSAGE_SELF, &usage);
-                // All ranks' peaks.
-                const double rss = comm.sum(1024.0 * static_cast<double>(usage.ru_maxrss));
                 const int used = talus::Simulation::max_threads();
-                // Each phase's share of the time in the step's phases (warm-up
-                // steps included), in the JSON line and with --profile on
+                // Each phase's share of the time in the step's phases over
+                // the timed steps, in the JSON line and with --profile on
                 // stderr as a table.
-                const auto ph = sim.phase_seconds();
                 double total = 0.0;
-                for (double v : ph)
+                for (double v : phases)
                     total += v;
                 std::string shares;
                 for (int k = 0; k < talus::Simulation::kPhases; ++k) {
-                    const double share = ph[static_cast<std::size_t>(k)] / total;
+                    const double share = phases[static_cast<std::size_t>(k)] / total;
                     shares += fmt::format("{}\"{}\": {:.3f}", k ? ", " : "",
                                           talus::Simulation::phase_name(k), share);
                     if (profile && rank0)
@@ -383,7 +403,7 @@ int main(int argc, char **argv) {
                             "\"migration_seconds_per_step\": %.3g, "
                             "\"halo_bytes_per_rank_step\": %.0f, "
                             "\"migration_bytes_per_rank_step\": %.0f, \"phase_shares\": {%s}}\n",
-                            c.name.c_str(), c.dim, n, steps, comm.size(), used, sim.kernel_isa(),
+                            c.name.c_str(), c.dim, n, steps, comm.size(), used, isa.c_str(),
                             kMaterialPath, busy, best, n * steps / best, n * steps / median,
                             particle_bytes / n, rss / n, barriers, halo_s, mig_s, halo_b, mig_b,
                             shares.c_str());
