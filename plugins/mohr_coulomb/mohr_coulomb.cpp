@@ -26,6 +26,7 @@
 #include "principal_return.hpp"
 
 #include <talus/sdk/material.hpp>
+#include <talus/sdk/spectral.hpp>
 #include <talus/sdk/voigt.hpp>
 
 #include <Eigen/Eigenvalues>
@@ -55,20 +56,7 @@ std::string fmt_g(double v) {
     return buf;
 }
 
-// Ordered (descending) spectral decomposition of a symmetric matrix.
-struct Spectral {
-    V3 values;  // s1 >= s2 >= s3
-    M3 vectors; // column k belongs to values[k]
-    explicit Spectral(const Mat3 &m) {
-        const Eigen::SelfAdjointEigenSolver<Mat3> es(m);
-        // Eigen returns ascending values.
-        for (int k = 0; k < 3; ++k) {
-            values[k] = es.eigenvalues()[2 - k];
-            vectors.col(k) = es.eigenvectors().col(2 - k);
-        }
-    }
-    Mat3 compose(const V3 &s) const { return vectors * s.asDiagonal() * vectors.transpose(); }
-};
+using Spectral = talus::sdk::SymmetricEigen;
 
 struct MohrCoulomb {
     static constexpr talus::sdk::ModelInfo info{
@@ -235,7 +223,7 @@ struct MohrCoulomb {
             if (out.tangent) *out.tangent = De_;
             return;
         }
-        Spectral sp(talus::sdk::stress_to_matrix(trial));
+        Spectral sp = talus::sdk::symmetric_eigen(talus::sdk::stress_to_matrix(trial));
         // The last return's kind is tried first: a point that keeps
         // yielding mostly stays on the same part of the surface, and any
         // valid candidate gives the same stress (the candidates partition
@@ -260,10 +248,11 @@ struct MohrCoulomb {
         // the surface that rounding puts just outside projects onto itself.)
         const V3 p0 = start_principal(in.stress);
         if (!talus_mc::admissible(p0, st_n, talus_mc::stress_tolerance(p0, st_n))) {
-            const Spectral s0(talus::sdk::stress_to_matrix(in.stress));
+            const Spectral s0 =
+                talus::sdk::symmetric_eigen(talus::sdk::stress_to_matrix(in.stress));
             const Return r0 = talus_mc::return_map(s0.values, st_n, el_);
             trial = talus::sdk::matrix_to_stress(s0.compose(r0.stress)) + De_ * in.strain_increment;
-            sp = Spectral(talus::sdk::stress_to_matrix(trial));
+            sp = talus::sdk::symmetric_eigen(talus::sdk::stress_to_matrix(trial));
             r = talus_mc::return_map(sp.values, st_n, el_, hint);
         }
         double kappa = kappa_n;

@@ -1,0 +1,140 @@
+// talus::sdk::symmetric_eigen against matrices built from known principal
+// values and directions (A = R diag(l) R^T), and against Eigen's iterative
+// solver on random matrices: values, residual and orthonormality at every
+// spacing of the values, including the double and triple ones where the
+// characteristic cubic alone loses half the digits.
+#include <talus/sdk/spectral.hpp>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+
+namespace {
+
+using talus::sdk::Mat3;
+using V3 = Eigen::Vector3d;
+constexpr double kEps = std::numeric_limits<double>::epsilon();
+// A backward-stable decomposition has errors of a few round-offs of |A|
+// (Golub & Van Loan, sec. 8.1); the construction of A = R diag(l) R^T adds
+// as many to the reference. 20 eps leaves room for both and is still ten
+// million times below the 1e-8 the closed-form cubic reaches at a double
+// value (the failure this solver is built to avoid).
+constexpr double kTol = 20.0 * kEps;
+
+Mat3 random_rotation(std::mt19937 &gen) {
+    std::normal_distribution<double> n;
+    Eigen::Quaterniond q(n(gen), n(gen), n(gen), n(gen));
+    q.normalize();
+    return q.toRotationMatrix();
+}
+
+// Checks the decomposition of a against the descending values l (exact up
+// to a's construction).
+void expect_decomposition(const Mat3 &a, const V3 &l) {
+    const talus::sdk::SymmetricEigen e = talus::sdk::symmetric_eigen(a);
+    // The largest entry, not the norm, whose squares underflow at 1e-250.
+    const double scale = a.cwiseAbs().maxCoeff();
+    EXPECT_GE(e.values[0], e.values[1]);
+    EXPECT_GE(e.values[1], e.values[2]);
+    EXPECT_LE((e.values - l).cwiseAbs().maxCoeff(), kTol * scale)
+        << "values " << e.values.transpose() << " expected " << l.transpose();
+    EXPECT_LE((e.compose(e.values) - a).cwiseAbs().maxCoeff(), kTol * scale);
+    EXPECT_LE((e.vectors.transpose() * e.vectors - Mat3::Identity()).norm(), kTol);
+    // Each column belongs to its value: A v = l v.
+    for (int k = 0; k < 3; ++k)
+        EXPECT_LE((a * e.vectors.col(k) - e.values[k] * e.vectors.col(k)).cwiseAbs().maxCoeff(),
+                  kTol * scale);
+}
+
+TEST(SymmetricEigen, KnownValuesAtEverySpacing) {
+    std::mt19937 gen(7);
+    // Two values from 1 apart (relative) to equal, each with the third
+    // above or below, a stress-like scale, and a large mean beside a small
+    // deviator (a geostatic stress).
+    for (double gap : {1.0, 1e-1, 1e-3, 1e-5, 1e-7, 1e-9, 1e-11, 1e-13, 0.0})
+        for (int trial = 0; trial < 500; ++trial) {
+            const Mat3 r = random_rotation(gen);
+            V3 l;
+            switch (trial % 4) {
+            case 0: l = V3(2.3e5, -1e5, -1e5 * (1.0 + gap)); break;
+            case 1: l = V3(1e5 * (1.0 + gap), 1e5, -2.3e5); break;
+            case 2: l = V3(-1.5e6, -3e6, -3e6 * (1.0 + gap)); break;
+            default: l = V3(-1e6 + 1e3 * (1.0 + gap), -1e6 + 1e3, -1e6); break;
+            }
+            std::sort(l.data(), l.data() + 3, std::greater<>());
+            expect_decomposition(r * l.asDiagonal() * r.transpose(), l);
+        }
+}
+
+TEST(SymmetricEigen, MatchesTheIterativeSolverOnRandomMatrices) {
+    std::mt19937 gen(11);
+    std::normal_distribution<double> n;
+    for (int trial = 0; trial < 5000; ++trial) {
+        Mat3 b;
+        for (int i = 0; i < 9; ++i)
+            b.data()[i] = n(gen);
+        const Mat3 a = (b + b.transpose()) * 1e5;
+        const Eigen::SelfAdjointEigenSolver<Mat3> ref(a);
+        const V3 l(ref.eigenvalues()[2], ref.eigenvalues()[1], ref.eigenvalues()[0]);
+        expect_decomposition(a, l);
+    }
+}
+
+TEST(SymmetricEigen, DiagonalIsotropicAndZeroMatrices) {
+    // Already diagonal, in every order: the values sorted, the vectors the
+    // axes (up to sign).
+    const V3 d(3.0, -1.0, 2.0);
+    int perm[3] = {0, 1, 2};
+    do {
+        const V3 l(d[perm[0]], d[perm[1]], d[perm[2]]);
+        const Mat3 a = l.asDiagonal();
+        expect_decomposition(a, V3(3.0, 2.0, -1.0));
+    } while (std::next_permutation(perm, perm + 3));
+    // q I has any basis: the solver returns the axes.
+    for (double q : {0.0, -4.5e6, 1e-300}) {
+        const talus::sdk::SymmetricEigen e = talus::sdk::symmetric_eigen(q * Mat3::Identity());
+        EXPECT_EQ(e.values, V3::Constant(q));
+        EXPECT_EQ(e.vectors, Mat3::Identity());
+    }
+}
+
+TEST(SymmetricEigen, ExtremeScalesAreScaledNotOverflowed) {
+    // Beyond [1e-60, 1e60] the squares of squares would under- or overflow
+    // without the scaling.
+    std::mt19937 gen(3);
+    for (double s : {1e-250, 1e-70, 1e70, 1e250}) {
+        const Mat3 r = random_rotation(gen);
+        const V3 l = V3(2.0, 1.0 + 1e-9, 1.0) * s;
+        expect_decomposition(r * l.asDiagonal() * r.transpose(), l);
+    }
+}
+
+TEST(SymmetricEigen, NaNInGivesNaNOut) {
+    // Off the diagonal of an isotropic matrix (where the largest entry of
+    // A - q I would be 0 without it) and on the diagonal.
+    for (int i : {0, 1})
+        for (int j : {1, 2}) {
+            Mat3 a = 2.0 * Mat3::Identity();
+            a(i, j) = a(j, i) = std::numeric_limits<double>::quiet_NaN();
+            const talus::sdk::SymmetricEigen e = talus::sdk::symmetric_eigen(a);
+            EXPECT_TRUE(e.values.hasNaN()) << i << j;
+            EXPECT_TRUE(e.compose(V3::Ones()).hasNaN()) << i << j;
+        }
+}
+
+TEST(SymmetricEigen, CubicRootIsSmithsFormula) {
+    // The quintic start and Halley step against 2 cos(acos(s) / 3), within
+    // two ulps of the root (at most 2).
+    for (int i = 0; i <= 20000; ++i) {
+        const double s = i / 20000.0;
+        const double ref = 2.0 * std::cos(std::acos(s) / 3.0);
+        EXPECT_NEAR(talus::sdk::detail::largest_cubic_root(s), ref, 4.0 * kEps) << "s = " << s;
+    }
+}
+
+} // namespace
