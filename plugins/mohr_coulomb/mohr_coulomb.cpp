@@ -15,8 +15,9 @@
 // includes the coupling through kappa.
 //
 // A start stress outside the yield surface (only possible from a user's
-// initial stress: every stress this model returns is admissible) is first
-// projected onto the surface by the same return, at the start state's
+// initial stress or another model's stress at a stage's set_material, both
+// with yield_mode 0: every stress this model returns is admissible) is
+// first projected onto the surface by the same return, at the start state's
 // strength and without counting the projection as plastic strain; the
 // increment then starts from the projected stress. A zero increment thus
 // returns the projected stress.
@@ -35,6 +36,7 @@
 #include <cmath>
 #include <cstdio>
 #include <numbers>
+#include <optional>
 #include <string>
 
 namespace {
@@ -211,18 +213,31 @@ struct MohrCoulomb {
         }
         fixed_strength_ = strength_at(0.0);
         fixed_lode_bound_ = lode_bound(fixed_strength_);
+        fixed_inv_lode_bound_ = 1.0 / fixed_lode_bound_;
+        fixed_systems_.emplace(fixed_strength_, el_);
+        moduli_ << 2.0 * el_.shear, 2.0 * el_.shear, 2.0 * el_.shear, el_.shear, el_.shear,
+            el_.shear;
+        normal_ << 1.0, 1.0, 1.0, 0.0, 0.0, 0.0;
     }
 
     void update(const talus::sdk::PointIn &in, talus::sdk::PointOut &out) const {
         const double kappa_n = in.state[0];
         const Strength st_n = strength(kappa_n);
-        Vec6 trial = in.stress + De_ * in.strain_increment;
-        if (clearly_elastic(trial, st_n, softening_ ? lode_bound(st_n) : fixed_lode_bound_)) {
+        Vec6 trial = in.stress + hooke(in.strain_increment);
+        const double bound = softening_ ? lode_bound(st_n) : fixed_lode_bound_;
+        const double inv_bound = softening_ ? 1.0 / bound : fixed_inv_lode_bound_;
+        if (clearly_elastic(trial, st_n, bound, inv_bound)) {
             out.stress = trial;
             out.state[2] = talus_mc::kElastic;
             if (out.tangent) *out.tangent = De_;
             return;
         }
+        // The candidates' systems: solved once without softening, else
+        // each as its candidate is tried.
+        auto return_map = [&](const V3 &t, int h) {
+            return softening_ ? talus_mc::return_map(t, st_n, el_, h)
+                              : talus_mc::return_map(t, st_n, *fixed_systems_, h);
+        };
         Spectral sp = talus::sdk::symmetric_eigen(talus::sdk::stress_to_matrix(trial));
         // The last return's kind is tried first: a point that keeps
         // yielding mostly stays on the same part of the surface, and any
@@ -232,7 +247,7 @@ struct MohrCoulomb {
         const int hint = last >= 1.0 && last < static_cast<int>(talus_mc::kModeCount)
                              ? talus_mc::candidate_of(static_cast<talus_mc::Mode>(last))
                              : talus_mc::kNone;
-        Return r = talus_mc::return_map(sp.values, st_n, el_, hint);
+        Return r = return_map(sp.values, hint);
         if (r.mode == talus_mc::kElastic) {
             out.stress = trial;
             // A stress left on the surface without plastic flow (a zero or
@@ -241,19 +256,27 @@ struct MohrCoulomb {
             if (out.tangent) *out.tangent = De_;
             return;
         }
-        // Plastic. If the start stress itself lies outside the surface (a
-        // user's initial stress), project it first, without plastic strain.
-        // Its eigenvalues alone (closed form, no vectors) decide; the full
-        // decomposition is needed only in that rare case. (A start stress on
-        // the surface that rounding puts just outside projects onto itself.)
-        const V3 p0 = start_principal(in.stress);
-        if (!talus_mc::admissible(p0, st_n, talus_mc::stress_tolerance(p0, st_n))) {
+        // Plastic. A start stress that this model did not leave on the
+        // surface itself (yield_mode 0: a user's initial stress, or the
+        // stress a group brings to this material at a stage's
+        // set_material) may lie outside it: it is then projected first,
+        // without plastic strain. A stress the last return put on the
+        // surface (yield_mode > 0, at the strength of the kappa stored with
+        // it, rotated by the host without changing its principal values)
+        // is admissible, and so is one clearly inside. (A start stress on
+        // the surface that rounding puts just outside projects onto
+        // itself.)
+        if (last == 0.0 && !clearly_elastic(in.stress, st_n, bound, inv_bound)) {
             const Spectral s0 =
                 talus::sdk::symmetric_eigen(talus::sdk::stress_to_matrix(in.stress));
-            const Return r0 = talus_mc::return_map(s0.values, st_n, el_);
-            trial = talus::sdk::matrix_to_stress(s0.compose(r0.stress)) + De_ * in.strain_increment;
-            sp = talus::sdk::symmetric_eigen(talus::sdk::stress_to_matrix(trial));
-            r = talus_mc::return_map(sp.values, st_n, el_, hint);
+            if (!talus_mc::admissible(s0.values, st_n,
+                                      talus_mc::stress_tolerance(s0.values, st_n))) {
+                const Return r0 = return_map(s0.values, talus_mc::kNone);
+                trial = talus::sdk::matrix_to_stress(s0.compose(r0.stress)) +
+                        hooke(in.strain_increment);
+                sp = talus::sdk::symmetric_eigen(talus::sdk::stress_to_matrix(trial));
+                r = return_map(sp.values, hint);
+            }
         }
         double kappa = kappa_n;
         M3 P_total;
@@ -320,11 +343,14 @@ struct MohrCoulomb {
         return s;
     }
 
-    // Ordered principal values of a stress, by the closed-form solver.
-    static V3 start_principal(const Vec6 &s) {
-        Eigen::SelfAdjointEigenSolver<Mat3> es;
-        es.computeDirect(talus::sdk::stress_to_matrix(s), Eigen::EigenvaluesOnly);
-        return V3(es.eigenvalues()[2], es.eigenvalues()[1], es.eigenvalues()[0]);
+    // The isotropic elastic stress increment of a strain increment
+    // (engineering shear): lambda tr(d_eps) 1 + 2 G d_eps. In whole-vector
+    // operations: a Vec6 assembled element by element on the stack and read
+    // back in pairs waits for the stores (store forwarding), which cost a
+    // fifth of this model's update (so did an update of its first three
+    // elements in place).
+    Vec6 hooke(const Vec6 &de) const {
+        return de.cwiseProduct(moduli_) + (el_.lambda * (de[0] + de[1] + de[2])) * normal_;
     }
 
     // max over the Lode angle of cos(theta) - sin(phi) sin(theta) / sqrt(3),
@@ -336,29 +362,34 @@ struct MohrCoulomb {
     // return's tolerance, decided from the invariants without eigenvalues
     // (most points' case; the decomposition costs more than the rest of an
     // elastic step). With p the mean stress, J2 the second deviatoric
-    // invariant and theta the Lode angle, s1 - s3 = 2 sqrt(J2) cos(theta) and
-    // s2 - p = 2 sqrt(J2 / 3) sin(theta), so (1 + sin phi) s1 - (1 - sin phi)
-    // s3 = 2 p sin phi + 2 sqrt(J2) (cos(theta) - sin(phi) sin(theta) /
-    // sqrt(3)) <= 2 p sin phi + 2 sqrt(J2) sqrt(1 + sin^2(phi) / 3), and s1 <=
-    // p + 2 sqrt(J2 / 3). Both bounds below minus twice the return's
-    // tolerance (rounding here is ~1e-15 of the stress, the tolerance 1e-10)
-    // mean the exact test finds the point inside and off the surface: the
-    // result is the full path's, bit for bit.
-    // `bound`: lode_bound(st).
-    static bool clearly_elastic(const Vec6 &t, const Strength &st, double bound) {
-        const double p = (t[0] + t[1] + t[2]) / 3.0;
+    // invariant, q = sqrt(J2) and theta the Lode angle, s1 - s3 = 2 q
+    // cos(theta) and s2 - p = 2 q sin(theta) / sqrt(3), so (1 + sin phi) s1 -
+    // (1 - sin phi) s3 = 2 p sin phi + 2 q (cos(theta) - sin(phi)
+    // sin(theta) / sqrt(3)) <= 2 p sin phi + 2 q b, b = sqrt(1 + sin^2(phi)
+    // / 3), and s1 <= p + 2 q / sqrt(3). The test asks both bounds to stay
+    // below the surface by twice the return's tolerance (rounding here is
+    // ~1e-15 of the stress, the tolerance 1e-10): the exact test then finds
+    // the point inside and off the surface, and the result is the full
+    // path's, bit for bit. Without square root: with R = c cos phi - p sin
+    // phi, the shear bound is q b < R - tol / 2, where the tolerance
+    // 2e-10 max(|p| + 2 q / sqrt(3), c) is taken at q = R / b, which it
+    // exceeds whenever the test passes; both sides are then squared.
+    // `bound`: lode_bound(st), `inv_bound` its inverse.
+    static bool clearly_elastic(const Vec6 &t, const Strength &st, double bound, double inv_bound) {
+        constexpr double k = 1.1547005383792515; // 2 / sqrt(3)
+        const double p = (t[0] + t[1] + t[2]) * (1.0 / 3.0);
         const double J2 = ((t[0] - t[1]) * (t[0] - t[1]) + (t[1] - t[2]) * (t[1] - t[2]) +
-                           (t[2] - t[0]) * (t[2] - t[0])) /
-                              6.0 +
+                           (t[2] - t[0]) * (t[2] - t[0])) *
+                              (1.0 / 6.0) +
                           t[3] * t[3] + t[4] * t[4] + t[5] * t[5];
-        const double q = std::sqrt(J2);
-        const double s1_max = p + 2.0 * q / std::sqrt(3.0);
-        // Twice stress_tolerance at least: max |s_i| <= |p| + 2 sqrt(J2 / 3).
-        const double tol =
-            2e-10 * std::max({std::abs(p) + 2.0 * q / std::sqrt(3.0), st.cohesion, 1e-300});
-        const double shear_max =
-            2.0 * p * st.sin_phi + 2.0 * q * bound - 2.0 * st.cohesion * st.cos_phi;
-        return shear_max < -tol && !(st.tension_active && s1_max - st.tension >= -tol);
+        const double R = st.cohesion * st.cos_phi - p * st.sin_phi;
+        if (!(R > 0.0)) return false;
+        const double tol = 2e-10 * std::max({std::abs(p) + k * R * inv_bound, st.cohesion, 1e-300});
+        const double shear = R - 0.5 * tol;
+        if (!(shear > 0.0 && J2 * bound * bound < shear * shear)) return false;
+        if (!st.tension_active) return true;
+        const double tension = st.tension - tol - p; // s1 <= p + k q < T - tol
+        return tension > 0.0 && k * k * J2 < tension * tension;
     }
     // Within the validity tolerance of the shear plane or the cut-off.
     static bool on_surface(const V3 &s, const Strength &st) {
@@ -452,8 +483,10 @@ struct MohrCoulomb {
             const talus_mc::Candidate &c =
                 talus_mc::kCandidates[static_cast<std::size_t>(r.candidate)];
             V3 dl;
-            if (!talus_mc::solve_candidate(c, trial, talus_mc::Planes(strength(ka)), el_, dl, ra) ||
-                !talus_mc::solve_candidate(c, trial, talus_mc::Planes(strength(kb)), el_, dl, rb))
+            const talus_mc::Planes pa(strength(ka)), pb(strength(kb));
+            if (!talus_mc::solve_candidate(c, talus_mc::make_system(c, pa, el_), trial, pa, dl,
+                                           ra) ||
+                !talus_mc::solve_candidate(c, talus_mc::make_system(c, pb, el_), trial, pb, dl, rb))
                 return;
         }
         const V3 ds_dk = (rb.stress - ra.stress) / (kb - ka);
@@ -500,13 +533,16 @@ struct MohrCoulomb {
 
     Elastic el_;
     Mat6 De_;
+    Vec6 moduli_; // 2G on the normal components, G on the (engineering) shear ones
+    Vec6 normal_; // 1 on the normal components
     double phi_ = 0.0, psi_ = 0.0, c_ = 0.0, tension_ = 0.0;
     bool softening_ = false;
     double phi_r_ = 0.0, psi_r_ = 0.0, c_r_ = 0.0, k0_ = 0.0, k1_ = 0.0;
     // The strength without softening, computed once: its sines and cosines
     // would otherwise be a fifth of a plastic point's cost.
     Strength fixed_strength_;
-    double fixed_lode_bound_ = 1.0;
+    double fixed_lode_bound_ = 1.0, fixed_inv_lode_bound_ = 1.0;
+    std::optional<talus_mc::Systems> fixed_systems_; // of fixed_strength_
 };
 
 } // namespace

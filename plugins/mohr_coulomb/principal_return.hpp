@@ -189,67 +189,101 @@ inline bool admissible(const V3 &s, const Strength &st, double tol) {
     return true;
 }
 
-// The linear solve of one candidate at an ordered trial stress, without the
-// validity tests. False when the system is singular (apex triples that do
-// not span 3D, the apex of phi = 0). Fills the multipliers, the returned
-// stress and P = I - D B M^-1 A, M = A D B (the derivative of the return
-// with respect to the trial stress; Clausen et al. 2007, sec. 4).
-inline bool solve_candidate(const Candidate &c, const V3 &trial, const Planes &pl,
-                            const Elastic &el, V3 &dl, Return &out) {
+// The linear system of one candidate: M = A D B (the planes' normals A, the
+// flow directions B, D the elastic matrix) and what follows from it alone,
+// M^-1 and P = I - D B M^-1 A, the derivative of the return with respect to
+// the trial stress (Clausen et al. 2007, sec. 4). None of it depends on the
+// trial stress, so a model with a fixed strength solves it once (Systems).
+// Not solvable when M is singular (apex triples that do not span 3D, the
+// apex of phi = 0).
+struct System {
+    bool solvable = false;
+    M3 DB = M3::Zero();   // columns D b_j, j < n; zero beyond
+    M3 Minv = M3::Zero(); // M^-1 in the top-left n x n; zero beyond
+    M3 P = M3::Identity();
+};
+
+inline System make_system(const Candidate &c, const Planes &pl, const Elastic &el) {
+    System sys;
     const int n = c.n;
     Eigen::Matrix3d M = Eigen::Matrix3d::Identity();
-    Eigen::Matrix3d A = Eigen::Matrix3d::Zero(), DB = Eigen::Matrix3d::Zero();
-    V3 rhs = V3::Zero();
+    Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
     for (int j = 0; j < n; ++j)
-        DB.col(j) = el.apply(pl.b[static_cast<std::size_t>(c.flows[static_cast<std::size_t>(j)])]);
+        sys.DB.col(j) =
+            el.apply(pl.b[static_cast<std::size_t>(c.flows[static_cast<std::size_t>(j)])]);
     for (int i = 0; i < n; ++i) {
         const std::size_t pi = static_cast<std::size_t>(c.planes[static_cast<std::size_t>(i)]);
         A.row(i) = pl.a[pi].transpose();
-        rhs[i] = pl.a[pi].dot(trial) - pl.k[pi];
         for (int j = 0; j < n; ++j)
-            M(i, j) = pl.a[pi].dot(DB.col(j));
+            M(i, j) = pl.a[pi].dot(sys.DB.col(j));
     }
-    // The n x n system in closed form (cofactors): at most 3 x 3, solved
-    // for every candidate tried at every plastic point, where a pivoting LU
-    // costs several times the rest of the return. Singular when the
-    // determinant is below 1e-12 of the scale M_max^n: the apex triples that
-    // do not span 3D give exactly zero, every other candidate is far above
-    // (the products a D b are of the order of the elastic moduli).
-    Eigen::Matrix3d Minv = Eigen::Matrix3d::Zero();
+    // The n x n inverse in closed form (cofactors): at most 3 x 3. Singular
+    // when the determinant is below 1e-12 of the scale M_max^n: the apex
+    // triples that do not span 3D give exactly zero, every other candidate
+    // is far above (the products a D b are of the order of the elastic
+    // moduli).
     const double scale = M.topLeftCorner(n, n).cwiseAbs().maxCoeff();
     if (n == 1) {
-        if (!(std::abs(M(0, 0)) > 0.0)) return false;
-        Minv(0, 0) = 1.0 / M(0, 0);
+        if (!(std::abs(M(0, 0)) > 0.0)) return sys;
+        sys.Minv(0, 0) = 1.0 / M(0, 0);
     } else if (n == 2) {
         const double det = M(0, 0) * M(1, 1) - M(0, 1) * M(1, 0);
-        if (!(std::abs(det) > 1e-12 * scale * scale)) return false;
-        Minv(0, 0) = M(1, 1) / det;
-        Minv(0, 1) = -M(0, 1) / det;
-        Minv(1, 0) = -M(1, 0) / det;
-        Minv(1, 1) = M(0, 0) / det;
+        if (!(std::abs(det) > 1e-12 * scale * scale)) return sys;
+        sys.Minv(0, 0) = M(1, 1) / det;
+        sys.Minv(0, 1) = -M(0, 1) / det;
+        sys.Minv(1, 0) = -M(1, 0) / det;
+        sys.Minv(1, 1) = M(0, 0) / det;
     } else {
         const double det = M.determinant();
-        if (!(std::abs(det) > 1e-12 * scale * scale * scale)) return false;
-        Minv = M.inverse();
+        if (!(std::abs(det) > 1e-12 * scale * scale * scale)) return sys;
+        sys.Minv = M.inverse();
     }
-    dl = Minv * rhs;
-    for (int j = n; j < 3; ++j)
-        dl[j] = 0.0;
-    out.stress = trial - DB * dl;
     // Rows of A and columns of DB beyond n are zero, so the full 3 x 3
     // products are the n-sized ones.
-    out.P = M3::Identity() - DB * Minv * A;
+    sys.P = M3::Identity() - sys.DB * sys.Minv * A;
+    sys.solvable = true;
+    return sys;
+}
+
+// The solve of one candidate at an ordered trial stress, without the
+// validity tests: false when its system is singular. Fills the
+// multipliers dl = M^-1 (A trial - k), the returned stress trial - D B dl
+// and P.
+inline bool solve_candidate(const Candidate &c, const System &sys, const V3 &trial,
+                            const Planes &pl, V3 &dl, Return &out) {
+    if (!sys.solvable) return false;
+    V3 rhs = V3::Zero();
+    for (int i = 0; i < c.n; ++i) {
+        const std::size_t pi = static_cast<std::size_t>(c.planes[static_cast<std::size_t>(i)]);
+        rhs[i] = pl.a[pi].dot(trial) - pl.k[pi];
+    }
+    dl = sys.Minv * rhs;
+    out.stress = trial - sys.DB * dl;
+    out.P = sys.P;
     out.mode = c.mode;
     return true;
 }
 
+// Every candidate's system at one strength: computed once for a model
+// without softening, where each return then needs only its right-hand
+// sides (a plastic point's solves were a tenth of its update when each
+// built and inverted its M).
+struct Systems {
+    Planes planes;
+    std::array<System, kCandidates.size()> of;
+    Systems(const Strength &st, const Elastic &el) : planes(st) {
+        for (std::size_t i = 0; i < kCandidates.size(); ++i)
+            of[i] = make_system(kCandidates[i], planes, el);
+    }
+};
+
 // Solves one candidate and tests it: multipliers non-negative, principal
 // order kept, no plane violated.
-inline bool try_candidate(const Candidate &c, const V3 &trial, const Planes &pl, const Elastic &el,
+inline bool try_candidate(const Candidate &c, const System &sys, const V3 &trial, const Planes &pl,
                           const Strength &st, double tol, Return &out) {
     V3 dl;
     Return r;
-    if (!solve_candidate(c, trial, pl, el, dl, r)) return false;
+    if (!solve_candidate(c, sys, trial, pl, dl, r)) return false;
     // Multipliers are strain-like; tested relative to the largest one.
     const double lscale = std::max(dl.cwiseAbs().maxCoeff(), 1e-300);
     if (dl.minCoeff() < -1e-10 * lscale) return false;
@@ -282,25 +316,28 @@ inline int candidate_of(Mode mode) {
     return kNone;
 }
 
-// The return of an ordered trial stress. Elastic when the trial is
-// admissible. `hint`: a candidate to try first (any valid candidate gives
-// the same stress, so the hint saves solves without choosing the answer).
-inline Return return_map(const V3 &trial, const Strength &st, const Elastic &el, int hint = kNone) {
+namespace detail {
+
+// The return with the systems from system_of(i) (candidate i's System, by
+// reference or value).
+template <class SystemOf>
+Return return_map(const V3 &trial, const Strength &st, const Planes &pl, SystemOf &&system_of,
+                  int hint) {
     Return r;
     r.stress = trial;
     const double tol = stress_tolerance(trial, st);
     if (admissible(trial, st, tol)) return r;
-    const Planes pl(st);
-    if (hint >= 0 && static_cast<std::size_t>(hint) < kCandidates.size() &&
-        enabled(kCandidates[static_cast<std::size_t>(hint)], st) &&
-        try_candidate(kCandidates[static_cast<std::size_t>(hint)], trial, pl, el, st, tol, r)) {
-        r.candidate = hint;
-        return r;
+    if (hint >= 0 && static_cast<std::size_t>(hint) < kCandidates.size()) {
+        const Candidate &c = kCandidates[static_cast<std::size_t>(hint)];
+        if (enabled(c, st) && try_candidate(c, system_of(hint), trial, pl, st, tol, r)) {
+            r.candidate = hint;
+            return r;
+        }
     }
     for (std::size_t i = 0; i < kCandidates.size(); ++i) {
         const Candidate &c = kCandidates[i];
         if (!enabled(c, st) || static_cast<int>(i) == hint) continue;
-        if (try_candidate(c, trial, pl, el, st, tol, r)) {
+        if (try_candidate(c, system_of(static_cast<int>(i)), trial, pl, st, tol, r)) {
             r.candidate = static_cast<int>(i);
             return r;
         }
@@ -310,6 +347,28 @@ inline Return return_map(const V3 &trial, const Strength &st, const Elastic &el,
     r.mode = st.tension_active ? kTensionApex : kShearApex;
     r.candidate = kApex;
     return r;
+}
+
+} // namespace detail
+
+// The return of an ordered trial stress. Elastic when the trial is
+// admissible. `hint`: a candidate to try first (any valid candidate gives
+// the same stress, so the hint saves solves without choosing the answer).
+// `sys`: the systems of st.
+inline Return return_map(const V3 &trial, const Strength &st, const Systems &sys,
+                         int hint = kNone) {
+    return detail::return_map(
+        trial, st, sys.planes,
+        [&](int i) -> const System & { return sys.of[static_cast<std::size_t>(i)]; }, hint);
+}
+
+// The same, each system made when its candidate is tried (a strength used
+// for one return).
+inline Return return_map(const V3 &trial, const Strength &st, const Elastic &el, int hint = kNone) {
+    const Planes pl(st);
+    return detail::return_map(
+        trial, st, pl,
+        [&](int i) { return make_system(kCandidates[static_cast<std::size_t>(i)], pl, el); }, hint);
 }
 
 // Equivalent plastic deviatoric strain of a principal plastic strain

@@ -309,6 +309,7 @@ TEST(MohrCoulomb, ReturnCandidatesPartitionTheTrialSpace) {
     for (const Set &s : sets) {
         const talus_mc::Strength st = strength(s.phi, s.psi, s.c, s.T);
         const talus_mc::Planes pl(st);
+        const talus_mc::Systems systems(st, el); // the plugin's path without softening
         for (int k = 0; k < 4000; ++k) {
             talus_mc::V3 t(u(rng), u(rng), u(rng));
             t *= 1e5;
@@ -319,9 +320,15 @@ TEST(MohrCoulomb, ReturnCandidatesPartitionTheTrialSpace) {
             for (const auto &c : talus_mc::kCandidates) {
                 if (!talus_mc::enabled(c, st)) continue;
                 talus_mc::Return r;
-                if (talus_mc::try_candidate(c, t, pl, el, st, tol, r)) valid.push_back(r);
+                if (talus_mc::try_candidate(c, talus_mc::make_system(c, pl, el), t, pl, st, tol, r))
+                    valid.push_back(r);
             }
             const talus_mc::Return chosen = talus_mc::return_map(t, st, el);
+            // The systems solved once or per return: the same operations.
+            const talus_mc::Return pre = talus_mc::return_map(t, st, systems);
+            EXPECT_EQ(pre.stress, chosen.stress);
+            EXPECT_EQ(pre.P, chosen.P);
+            EXPECT_EQ(pre.candidate, chosen.candidate);
             if (valid.empty()) {
                 // The apex, and only beyond it: a return to the apex has
                 // non-negative plastic volume change (the potentials'
@@ -335,10 +342,14 @@ TEST(MohrCoulomb, ReturnCandidatesPartitionTheTrialSpace) {
             EXPECT_LT((chosen.stress - valid[0].stress).norm(), 1e-8 * t.norm());
             // The plugin tries the last return's candidate first: whichever
             // it is, the stress is the same (same bound).
-            for (int hint = 0; hint < static_cast<int>(talus_mc::kCandidates.size()); ++hint)
+            for (int hint = 0; hint < static_cast<int>(talus_mc::kCandidates.size()); ++hint) {
                 EXPECT_LT((talus_mc::return_map(t, st, el, hint).stress - chosen.stress).norm(),
                           1e-8 * t.norm())
                     << "hint " << hint;
+                EXPECT_EQ(talus_mc::return_map(t, st, systems, hint).stress,
+                          talus_mc::return_map(t, st, el, hint).stress)
+                    << "hint " << hint;
+            }
             for (const auto &r : valid)
                 // 1e-8 of the trial: the linear solves of different
                 // candidates reach the same point with different rounding.
