@@ -272,17 +272,26 @@ struct MohrCoulomb {
             if (!talus_mc::admissible(s0.values, st_n,
                                       talus_mc::stress_tolerance(s0.values, st_n))) {
                 const Return r0 = return_map(s0.values, talus_mc::kNone);
-                trial = talus::sdk::matrix_to_stress(s0.compose(r0.stress)) +
-                        hooke(in.strain_increment);
+                trial = s0.compose_stress(r0.stress) + hooke(in.strain_increment);
                 sp = talus::sdk::symmetric_eigen(talus::sdk::stress_to_matrix(trial));
                 r = return_map(sp.values, hint);
             }
+        }
+        if (!softening_) {
+            // The return above is final: kappa only accumulates.
+            const V3 x = el_.solve(sp.values - r.stress); // principal plastic strain increment
+            out.stress = sp.compose_stress(r.stress);
+            out.state[2] = r.mode;
+            out.state[0] = kappa_n + talus_mc::deviatoric_measure(x);
+            out.state[1] = in.state[1] + x.sum();
+            if (out.tangent) *out.tangent = spectral_tangent(sp, r.stress, r.P);
+            return;
         }
         double kappa = kappa_n;
         M3 P_total;
         r = plastic_return(sp.values, kappa_n, r, kappa, P_total);
         const V3 x = el_.solve(sp.values - r.stress); // principal plastic strain increment
-        out.stress = talus::sdk::matrix_to_stress(sp.compose(r.stress));
+        out.stress = sp.compose_stress(r.stress);
         out.state[0] = kappa;
         out.state[1] = in.state[1] + x.sum();
         out.state[2] = r.mode;

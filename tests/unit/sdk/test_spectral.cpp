@@ -45,6 +45,12 @@ void expect_decomposition(const Mat3 &a, const V3 &l) {
         << "values " << e.values.transpose() << " expected " << l.transpose();
     EXPECT_LE((e.compose(e.values) - a).cwiseAbs().maxCoeff(), kTol * scale);
     EXPECT_LE((e.vectors.transpose() * e.vectors - Mat3::Identity()).norm(), kTol);
+    // The Voigt form holds the same six components (a few round-offs: the
+    // products are summed in another order).
+    EXPECT_LE((e.compose_stress(e.values) - talus::sdk::matrix_to_stress(e.compose(e.values)))
+                  .cwiseAbs()
+                  .maxCoeff(),
+              kTol * scale);
     // Each column belongs to its value: A v = l v.
     for (int k = 0; k < 3; ++k)
         EXPECT_LE((a * e.vectors.col(k) - e.values[k] * e.vectors.col(k)).cwiseAbs().maxCoeff(),

@@ -37,6 +37,17 @@ struct SymmetricEigen {
     Mat3 compose(const Eigen::Vector3d &s) const {
         return vectors * s.asDiagonal() * vectors.transpose();
     }
+    // The same as a stress-like Voigt vector (xx, yy, zz, xy, yz, xz), its
+    // six components only.
+    Vec6 compose_stress(const Eigen::Vector3d &s) const {
+        const Mat3 &v = vectors;
+        auto entry = [&](int i, int j) {
+            return s[0] * v(i, 0) * v(j, 0) + s[1] * v(i, 1) * v(j, 1) + s[2] * v(i, 2) * v(j, 2);
+        };
+        Vec6 out;
+        out << entry(0, 0), entry(1, 1), entry(2, 2), entry(0, 1), entry(1, 2), entry(0, 2);
+        return out;
+    }
 };
 
 namespace detail {
@@ -48,11 +59,11 @@ namespace detail {
 // derivative 3 y^2 - 3 is at least 6 there): within an ulp at 20001
 // points of [0, 1], tested against Smith's formula.
 inline double largest_cubic_root(double s) {
-    const double y = 1.7320519648963821 +
-                     s * (0.3332451278684757 +
-                          s * (-0.095107251581874 +
-                               s * (0.043955570613302984 +
-                                    s * (-0.018108343307837876 + s * 0.003963812960511424))));
+    // Estrin's scheme: three independent pairs, then two levels.
+    const double s2 = s * s, s4 = s2 * s2;
+    const double y = (1.7320519648963821 + 0.3332451278684757 * s) +
+                     s2 * (-0.095107251581874 + 0.043955570613302984 * s) +
+                     s4 * (-0.018108343307837876 + 0.003963812960511424 * s);
     const double f = y * (y * y - 3.0) - 2.0 * s, d1 = 3.0 * (y * y - 1.0), d2 = 6.0 * y;
     return y - 2.0 * f * d1 / (2.0 * d1 * d1 - f * d2);
 }
@@ -94,9 +105,10 @@ inline SymmetricEigen symmetric_eigen(const Mat3 &a) {
     const double p = std::sqrt(p2);
     const double det = c00 * (c11 * c22 - c12 * c12) - c01 * (c01 * c22 - c12 * c02) +
                        c02 * (c01 * c12 - c11 * c02);
-    // det(C / p) / 2 in [-1, 1] (up to round-off); for det < 0 the largest
-    // root of -C's cubic, negated.
-    const double r = std::clamp(det / (2.0 * p2 * p), -1.0, 1.0);
+    // det(C / p) / 2 in [-1, 1] (up to round-off), as det p / (2 p2^2) so
+    // that the square root and the division run side by side; for det < 0
+    // the largest root of -C's cubic, negated.
+    const double r = std::clamp(det * p * (1.0 / (2.0 * p2 * p2)), -1.0, 1.0);
     const double x = std::copysign(detail::largest_cubic_root(std::abs(r)) * p, r);
     // The rows of C - x I; their largest cross product is along the vector.
     // Scalars and selects rather than small vectors and branches: the
