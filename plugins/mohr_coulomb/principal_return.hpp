@@ -247,8 +247,8 @@ inline System make_system(const Candidate &c, const Planes &pl, const Elastic &e
 
 // The solve of one candidate at an ordered trial stress, without the
 // validity tests: false when its system is singular. Fills the
-// multipliers dl = M^-1 (A trial - k), the returned stress trial - D B dl
-// and P.
+// multipliers dl = M^-1 (A trial - k) and the returned stress trial - D B dl
+// (out.P is left as it was: sys.P is the return's derivative).
 inline bool solve_candidate(const Candidate &c, const System &sys, const V3 &trial,
                             const Planes &pl, V3 &dl, Return &out) {
     if (!sys.solvable) return false;
@@ -259,7 +259,6 @@ inline bool solve_candidate(const Candidate &c, const System &sys, const V3 &tri
     }
     dl = sys.Minv * rhs;
     out.stress = trial - sys.DB * dl;
-    out.P = sys.P;
     out.mode = c.mode;
     return true;
 }
@@ -291,7 +290,7 @@ inline bool try_candidate(const Candidate &c, const System &sys, const V3 &trial
     if (s[0] - s[1] < -tol || s[1] - s[2] < -tol) return false;
     if (!admissible(s, st, tol)) return false;
     out.stress = s;
-    out.P = r.P;
+    out.P = sys.P;
     out.mode = r.mode;
     return true;
 }

@@ -74,7 +74,10 @@ inline double largest_cubic_root(double s) {
 // triangle is read). NaN in a gives NaN out.
 inline SymmetricEigen symmetric_eigen(const Mat3 &a) {
     SymmetricEigen out;
-    const double q = (a(0, 0) + a(1, 1) + a(2, 2)) / 3.0;
+    // Products by the constants 1/3 and 1/6 rather than divisions: these
+    // start the chain of dependent operations. (Any shift q serves; p2 only
+    // scales the cubic.)
+    const double q = (a(0, 0) + a(1, 1) + a(2, 2)) * (1.0 / 3.0);
     double c00 = a(0, 0) - q, c11 = a(1, 1) - q, c22 = a(2, 2) - q;
     double c01 = a(0, 1), c02 = a(0, 2), c12 = a(1, 2);
     const double m = std::max(
@@ -101,7 +104,8 @@ inline SymmetricEigen symmetric_eigen(const Mat3 &a) {
         c12 *= inv;
     }
     const double p2 =
-        (c00 * c00 + c11 * c11 + c22 * c22 + 2.0 * (c01 * c01 + c02 * c02 + c12 * c12)) / 6.0;
+        (c00 * c00 + c11 * c11 + c22 * c22 + 2.0 * (c01 * c01 + c02 * c02 + c12 * c12)) *
+        (1.0 / 6.0);
     const double p = std::sqrt(p2);
     const double det = c00 * (c11 * c22 - c12 * c12) - c01 * (c01 * c22 - c12 * c02) +
                        c02 * (c01 * c12 - c11 * c02);
