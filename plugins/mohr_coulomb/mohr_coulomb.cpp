@@ -30,8 +30,6 @@
 #include <talus/sdk/spectral.hpp>
 #include <talus/sdk/voigt.hpp>
 
-#include <Eigen/Eigenvalues>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
