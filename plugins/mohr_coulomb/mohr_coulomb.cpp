@@ -232,7 +232,7 @@ struct MohrCoulomb {
         }
         // The candidates' systems: solved once without softening, else
         // each as its candidate is tried.
-        auto return_map = [&](const V3 &t, int h) {
+        auto return_of = [&](const V3 &t, int h) {
             return softening_ ? talus_mc::return_map(t, st_n, el_, h)
                               : talus_mc::return_map(t, st_n, *fixed_systems_, h);
         };
@@ -245,7 +245,7 @@ struct MohrCoulomb {
         const int hint = last >= 1.0 && last < static_cast<int>(talus_mc::kModeCount)
                              ? talus_mc::candidate_of(static_cast<talus_mc::Mode>(last))
                              : talus_mc::kNone;
-        Return r = return_map(sp.values, hint);
+        Return r = return_of(sp.values, hint);
         if (r.mode == talus_mc::kElastic) {
             out.stress = trial;
             // A stress left on the surface without plastic flow (a zero or
@@ -269,31 +269,28 @@ struct MohrCoulomb {
                 talus::sdk::symmetric_eigen(talus::sdk::stress_to_matrix(in.stress));
             if (!talus_mc::admissible(s0.values, st_n,
                                       talus_mc::stress_tolerance(s0.values, st_n))) {
-                const Return r0 = return_map(s0.values, talus_mc::kNone);
+                const Return r0 = return_of(s0.values, talus_mc::kNone);
                 trial = s0.compose_stress(r0.stress) + hooke(in.strain_increment);
                 sp = talus::sdk::symmetric_eigen(talus::sdk::stress_to_matrix(trial));
-                r = return_map(sp.values, hint);
+                r = return_of(sp.values, hint);
             }
         }
-        if (!softening_) {
-            // The return above is final: kappa only accumulates.
-            const V3 x = el_.solve(sp.values - r.stress); // principal plastic strain increment
-            out.stress = sp.compose_stress(r.stress);
-            out.state[2] = r.mode;
-            out.state[0] = kappa_n + talus_mc::deviatoric_measure(x);
-            out.state[1] = in.state[1] + x.sum();
-            if (out.tangent) *out.tangent = spectral_tangent(sp, r.stress, r.P);
-            return;
-        }
+        // Without softening the return above is final and kappa only
+        // accumulates; with it, kappa is solved for (plastic_return).
         double kappa = kappa_n;
         M3 P_total;
-        r = plastic_return(sp.values, kappa_n, r, kappa, P_total);
+        const M3 *P = &r.P;
+        if (softening_) {
+            r = plastic_return(sp.values, kappa_n, r, kappa, P_total);
+            P = &P_total;
+        }
         const V3 x = el_.solve(sp.values - r.stress); // principal plastic strain increment
+        if (!softening_) kappa = kappa_n + talus_mc::deviatoric_measure(x);
         out.stress = sp.compose_stress(r.stress);
         out.state[0] = kappa;
         out.state[1] = in.state[1] + x.sum();
         out.state[2] = r.mode;
-        if (out.tangent) *out.tangent = spectral_tangent(sp, r.stress, P_total);
+        if (out.tangent) *out.tangent = spectral_tangent(sp, r.stress, *P);
     }
 
     // The set-up call (ABI 1.1): the user's initial stress is returned to
