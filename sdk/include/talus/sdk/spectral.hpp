@@ -115,8 +115,7 @@ inline SymmetricEigen symmetric_eigen(const Mat3 &a) {
     const double r = std::clamp(det * p * (1.0 / (2.0 * p2 * p2)), -1.0, 1.0);
     const double x = std::copysign(detail::largest_cubic_root(std::abs(r)) * p, r);
     // The rows of C - x I; their largest cross product is along the vector.
-    // Scalars and selects rather than small vectors and branches: the
-    // choices differ from one point to the next.
+    // In scalars: as small Eigen vectors they went through the stack.
     const double d0 = c00 - x, d1 = c11 - x, d2 = c22 - x;
     // r0 x r1, r0 x r2, r1 x r2 for the rows r0 = (d0, c01, c02), r1 =
     // (c01, d1, c12), r2 = (c02, c12, d2).
