@@ -4,6 +4,7 @@
 #pragma once
 
 #include "grid.hpp"
+#include "isa.hpp"
 #include "ordering.hpp"
 
 #include <talus/mpm/particles.hpp>
@@ -61,9 +62,11 @@ class StepEndBlocks {
     };
 
     // `block`: the points per block() call (the last of a set may be
-    // shorter); block() runs with positions already moved or x + dx.
+    // shorter); block() runs with positions already moved or x + dx, in
+    // packs across the vector lanes of instruction set `isa` (the results
+    // do not depend on it).
     void begin(std::vector<ParticleSet> &sets, const GridGeometry &geo, const Domain &domain,
-               Ordering &order, PositionStep step, std::size_t block);
+               Ordering &order, PositionStep step, std::size_t block, Isa isa);
     void block(std::size_t set, std::size_t begin, std::size_t count);
     // Throws talus::Error if a block broke block()'s contract (its partial
     // would have overwritten another's).
@@ -75,6 +78,7 @@ class StepEndBlocks {
     Domain domain_;
     Ordering *order_ = nullptr;
     bool add_ = false;
+    Isa isa_ = Isa::generic;
     std::size_t block_ = 1;
     std::vector<Ordering::Marks> marks_;         // per set
     std::vector<std::vector<Partial>> partials_; // per set, per block (kept between steps)
@@ -84,7 +88,7 @@ class StepEndBlocks {
 // The step's end as a pass of its own (the schemes other than fused USL).
 StepEnd move_particles(std::vector<ParticleSet> &sets, const GridGeometry &geo,
                        const Domain &domain, Ordering &order, PositionStep step,
-                       StepEndBlocks &blocks);
+                       StepEndBlocks &blocks, Isa isa);
 
 // The particles outside the domain: removed (policy remove) or kept in
 // place; the first few described for a report. Returns how many there were.

@@ -21,6 +21,9 @@ class Ordering {
   public:
     Ordering(const GridGeometry &geo, std::size_t n_sets);
 
+    // Cells per slab along the axis.
+    static constexpr int kWidth = 4;
+
     int axis() const { return axis_; }
     int n_slabs() const { return n_slabs_; }
     int slab_of_cell(int cell) const { return std::min(cell / kWidth, n_slabs_ - 1); }
@@ -64,7 +67,6 @@ class Ordering {
                  bool slabs_changed);
 
   private:
-    static constexpr int kWidth = 4;
     void bin(const std::vector<ParticleSet> &sets);
     GridGeometry geo_;
     int axis_ = 0, n_slabs_ = 1;

@@ -115,7 +115,7 @@ void Simulation::Impl::g2p_velocity_and_update(double t, double dt) {
     UpdateFailures failures;
     materials.prepare(sets);
     step_ends.begin(sets, grid.geo, domain, order, PositionStep::already_moved,
-                    materials.block_size());
+                    materials.block_size(), isa);
     const Increment inc{t, dt, step + 1, nullptr, nullptr};
     MaterialBlocks blocks(materials, step_ends, sets, inc, failures);
     {
@@ -179,7 +179,7 @@ void Simulation::Impl::update_failed(const UpdateFailures &f, double t) {
 
 void Simulation::Impl::move_particles(PositionStep how) {
     auto tm = timer(Phase::move_particles);
-    step_ended(talus::move_particles(sets, grid.geo, domain, order, how, step_ends));
+    step_ended(talus::move_particles(sets, grid.geo, domain, order, how, step_ends, isa));
 }
 
 void Simulation::Impl::step_ended(const StepEnd &mine) {

@@ -6,7 +6,9 @@
 // (within each set, none across sets). The blocks may run in any order and
 // be of any size (the fused USL pass runs them from whichever thread takes
 // them): every result must be the loop's exactly, integers and the maximum
-// alike, since none of them involves a sum in floating point.
+// alike, since none of them involves a sum in floating point. So must the
+// block's packs across the vector lanes of every instruction set.
+#include "isa.hpp"
 #include "move_particles.hpp"
 #include "ordering.hpp"
 
@@ -27,58 +29,79 @@ namespace {
 
 using talus::Domain;
 using talus::GridGeometry;
+using talus::Isa;
 using talus::Ordering;
 using talus::ParticleSet;
 using talus::PositionStep;
 using talus::StepEnd;
 using talus::StepEndBlocks;
 
-// A 2D grid of 40 x 24 cells of 0.05 m from (-1, 0.5); closed x- and y-
-// faces, free x+ and y+.
-GridGeometry geometry() {
+// The instruction sets this machine runs.
+std::vector<Isa> isas() {
+    std::vector<Isa> v{Isa::generic};
+    const Isa widest = talus::kernel_isa();
+    if (widest == Isa::avx2 || widest == Isa::avx512) v.push_back(Isa::avx2);
+    if (widest == Isa::avx512) v.push_back(Isa::avx512);
+    return v;
+}
+
+// A grid of 40 x 24 (x 6) cells of 0.05 m from (-1, 0.5, 2); in 2D closed
+// x- and y- faces, free x+ and y+; in 3D also a closed z+ face and a free
+// z- one.
+GridGeometry geometry(int dim = 2) {
     GridGeometry g;
-    g.dim = 2;
+    g.dim = dim;
     g.h = 0.05;
     g.inv_h = 1.0 / g.h;
-    g.origin = {-1.0, 0.5, 0.0};
-    g.cells = {40, 24, 1};
+    g.origin = {-1.0, 0.5, 2.0};
+    g.cells = {40, 24, dim == 3 ? 6 : 1};
     return g;
 }
 
 Domain domain_of(const GridGeometry &g) {
     Domain d;
-    for (std::size_t a = 0; a < 2; ++a) {
+    for (std::size_t a = 0; a < static_cast<std::size_t>(g.dim); ++a) {
         d.lo[a] = g.origin[a];
         d.hi[a] = g.origin[a] + g.cells[a] * g.h;
     }
     d.closed_lo = {true, true, false};
+    d.closed_hi = {false, false, g.dim == 3};
     return d;
 }
 
 // Two sets of particles, mostly in cell order with disorder mixed in, some
 // stepping through the closed faces (held), some through the free ones
-// (outside).
-std::vector<ParticleSet> particles(const GridGeometry &g, std::uint32_t seed) {
+// (outside). Moved: x already holds x + dx, and dx is NaN (the fused
+// pass's form: the step's end must not read it).
+std::vector<ParticleSet> particles(const GridGeometry &g, std::uint32_t seed, bool moved = false) {
     std::mt19937 rng(seed);
     std::uniform_real_distribution<double> u(0.0, 1.0);
+    const std::size_t dim = static_cast<std::size_t>(g.dim);
     std::vector<ParticleSet> sets(2);
     const std::size_t n[2] = {1500, 777};
     for (std::size_t si = 0; si < 2; ++si) {
         ParticleSet &s = sets[si];
-        s.dim = 2;
+        s.dim = g.dim;
         s.has_C = s.has_divv = s.has_lp = s.has_L = false;
         s.resize(n[si]);
         for (std::size_t p = 0; p < s.n; ++p) {
-            // Sorted along y by index, x random: descents inside rows.
-            const double fy = (static_cast<double>(p) + u(rng)) / static_cast<double>(s.n);
-            s.x[0][p] = g.origin[0] + u(rng) * g.cells[0] * g.h;
-            s.x[1][p] = g.origin[1] + fy * g.cells[1] * g.h;
+            // Sorted along the last axis by index, the others random:
+            // descents inside rows.
+            const double f = (static_cast<double>(p) + u(rng)) / static_cast<double>(s.n);
+            for (std::size_t d = 0; d + 1 < dim; ++d)
+                s.x[d][p] = g.origin[d] + u(rng) * g.cells[d] * g.h;
+            s.x[dim - 1][p] = g.origin[dim - 1] + f * g.cells[dim - 1] * g.h;
             const double kick = u(rng);
-            for (std::size_t d = 0; d < 2; ++d)
+            for (std::size_t d = 0; d < dim; ++d)
                 s.dx[d][p] = (u(rng) - 0.5) * 0.02 + (kick < 0.05 ? -0.3 : kick > 0.95 ? 0.3 : 0.0);
-            for (std::size_t d = 0; d < 2; ++d)
+            for (std::size_t d = 0; d < dim; ++d)
                 s.v[d][p] = (u(rng) - 0.5) * 4.0;
             s.c[p] = 50.0 + 10.0 * u(rng);
+            if (moved)
+                for (std::size_t d = 0; d < dim; ++d) {
+                    s.x[d][p] += s.dx[d][p];
+                    s.dx[d][p] = std::nan("");
+                }
         }
     }
     return sets;
@@ -87,7 +110,7 @@ std::vector<ParticleSet> particles(const GridGeometry &g, std::uint32_t seed) {
 struct Expected {
     StepEnd end;
     long moved = 0, descents = 0;
-    std::vector<std::vector<double>> x[2];
+    std::vector<std::vector<double>> x[3];
     std::vector<std::vector<std::int32_t>> slab;
 };
 
@@ -95,7 +118,8 @@ struct Expected {
 Expected reference(std::vector<ParticleSet> sets, const GridGeometry &g, const Domain &dom,
                    const Ordering &order) {
     Expected e;
-    for (std::size_t d = 0; d < 2; ++d)
+    const std::size_t dim = static_cast<std::size_t>(g.dim);
+    for (std::size_t d = 0; d < dim; ++d)
         e.x[d].resize(sets.size());
     e.slab.resize(sets.size());
     for (std::size_t si = 0; si < sets.size(); ++si) {
@@ -103,23 +127,29 @@ Expected reference(std::vector<ParticleSet> sets, const GridGeometry &g, const D
         long last_cell = -1;
         for (std::size_t p = 0; p < s.n; ++p) {
             bool in = true;
-            long cell[2];
-            for (std::size_t d = 0; d < 2; ++d) {
+            long cell[3] = {0, 0, 0};
+            double v2 = 0.0;
+            for (std::size_t d = 0; d < dim; ++d) {
                 double x = s.x[d][p] + s.dx[d][p];
                 if (dom.closed_lo[d] && x < dom.lo[d]) {
                     e.end.held_depth = std::max(e.end.held_depth, dom.lo[d] - x);
                     ++e.end.held;
                     x = dom.lo[d];
                 }
+                if (dom.closed_hi[d] && x > dom.hi[d]) {
+                    e.end.held_depth = std::max(e.end.held_depth, x - dom.hi[d]);
+                    ++e.end.held;
+                    x = dom.hi[d];
+                }
                 in = in && x >= dom.lo[d] && x <= dom.hi[d];
                 e.x[d][si].push_back(x);
                 cell[d] = std::clamp(static_cast<long>(std::floor((x - g.origin[d]) / g.h)), 0L,
                                      static_cast<long>(g.cells[d]) - 1);
+                v2 += s.v[d][p] * s.v[d][p];
             }
             e.end.outside += in ? 0 : 1;
-            e.end.max_speed = std::max(
-                e.end.max_speed, s.c[p] + std::sqrt(s.v[0][p] * s.v[0][p] + s.v[1][p] * s.v[1][p]));
-            const long ci = cell[0] + cell[1] * g.cells[0];
+            e.end.max_speed = std::max(e.end.max_speed, s.c[p] + std::sqrt(v2));
+            const long ci = cell[0] + g.cells[0] * (cell[1] + g.cells[1] * cell[2]);
             if (p > 0 && ci < last_cell) ++e.descents;
             last_cell = ci;
             const int slab =
@@ -141,41 +171,52 @@ void expect_equal(const Expected &e, const StepEnd &got, const std::vector<Parti
     EXPECT_EQ(order.slabs_changed(), e.moved > 0);
     for (std::size_t si = 0; si < sets.size(); ++si) {
         EXPECT_EQ(order.slabs(si), e.slab[si]);
-        for (std::size_t d = 0; d < 2; ++d)
+        for (std::size_t d = 0; d < static_cast<std::size_t>(sets[si].dim); ++d)
             for (std::size_t p = 0; p < sets[si].n; ++p)
                 ASSERT_EQ(sets[si].x[d][p], e.x[d][si][p]) << "set " << si << " particle " << p;
     }
 }
 
 TEST(StepEnd, BlocksInAnyOrderAndOfAnySizeGiveThePlainLoopsResults) {
-    const GridGeometry g = geometry();
-    const Domain dom = domain_of(g);
     std::mt19937 shuffle(7);
-    for (const std::size_t block :
-         {std::size_t{1}, std::size_t{7}, std::size_t{128}, std::size_t{5000}}) {
-        for (int order_kind = 0; order_kind < 3; ++order_kind) {
-            std::vector<ParticleSet> sets = particles(g, 11);
-            Ordering order(g, sets.size());
-            const Expected e = reference(particles(g, 11), g, dom, order);
-            // The test must be able to fail: the cases hold, descend and
-            // leave.
-            ASSERT_GT(e.end.held, 10);
-            ASSERT_GT(e.end.outside, 10);
-            ASSERT_GT(e.descents, 100);
-            StepEndBlocks ends;
-            ends.begin(sets, g, dom, order, PositionStep::add_dx, block);
-            std::vector<std::pair<std::size_t, std::size_t>> jobs;
-            for (std::size_t si = 0; si < sets.size(); ++si)
-                for (std::size_t b = 0; b < sets[si].n; b += block)
-                    jobs.emplace_back(si, b);
-            if (order_kind == 1) std::reverse(jobs.begin(), jobs.end());
-            if (order_kind == 2) std::shuffle(jobs.begin(), jobs.end(), shuffle);
-            for (const auto &[si, b] : jobs)
-                ends.block(si, b, std::min(block, sets[si].n - b));
-            SCOPED_TRACE(testing::Message() << "block " << block << ", order " << order_kind);
-            expect_equal(e, ends.finish(), sets, order);
-        }
-    }
+    for (int dim : {2, 3})
+        for (bool moved : {false, true})
+            for (Isa isa : isas()) {
+                const GridGeometry g = geometry(dim);
+                const Domain dom = domain_of(g);
+                const PositionStep step =
+                    moved ? PositionStep::already_moved : PositionStep::add_dx;
+                // Blocks shorter than, as long as and longer than a pack.
+                for (const std::size_t block :
+                     {std::size_t{1}, std::size_t{7}, std::size_t{8}, std::size_t{13},
+                      std::size_t{128}, std::size_t{5000}}) {
+                    for (int order_kind = 0; order_kind < 3; ++order_kind) {
+                        std::vector<ParticleSet> sets = particles(g, 11, moved);
+                        Ordering order(g, sets.size());
+                        const Expected e = reference(particles(g, 11), g, dom, order);
+                        // The test must be able to fail: the cases hold,
+                        // descend and leave.
+                        ASSERT_GT(e.end.held, 10);
+                        ASSERT_GT(e.end.outside, 10);
+                        ASSERT_GT(e.descents, 100);
+                        StepEndBlocks ends;
+                        ends.begin(sets, g, dom, order, step, block, isa);
+                        std::vector<std::pair<std::size_t, std::size_t>> jobs;
+                        for (std::size_t si = 0; si < sets.size(); ++si)
+                            for (std::size_t b = 0; b < sets[si].n; b += block)
+                                jobs.emplace_back(si, b);
+                        if (order_kind == 1) std::reverse(jobs.begin(), jobs.end());
+                        if (order_kind == 2) std::shuffle(jobs.begin(), jobs.end(), shuffle);
+                        for (const auto &[si, b] : jobs)
+                            ends.block(si, b, std::min(block, sets[si].n - b));
+                        SCOPED_TRACE(testing::Message()
+                                     << talus::isa_name(isa) << ", dim " << dim
+                                     << (moved ? ", moved" : ", x + dx") << ", block " << block
+                                     << ", order " << order_kind);
+                        expect_equal(e, ends.finish(), sets, order);
+                    }
+                }
+            }
 }
 
 // A block that does not start at a multiple of the block size would file
@@ -186,12 +227,12 @@ TEST(StepEnd, AMisalignedBlockIsRefusedNotLost) {
     std::vector<ParticleSet> sets = particles(g, 3);
     Ordering order(g, sets.size());
     StepEndBlocks ends;
-    ends.begin(sets, g, dom, order, PositionStep::add_dx, 128);
+    ends.begin(sets, g, dom, order, PositionStep::add_dx, 128, Isa::generic);
     ends.block(0, 0, 100);
     ends.block(0, 100, 128); // overlaps block 0's slot
     EXPECT_THROW(ends.finish(), talus::Error);
     // The next pass starts clean.
-    ends.begin(sets, g, dom, order, PositionStep::add_dx, 128);
+    ends.begin(sets, g, dom, order, PositionStep::add_dx, 128, Isa::generic);
     for (std::size_t si = 0; si < sets.size(); ++si)
         for (std::size_t b = 0; b < sets[si].n; b += 128)
             ends.block(si, b, std::min<std::size_t>(128, sets[si].n - b));
@@ -201,12 +242,15 @@ TEST(StepEnd, AMisalignedBlockIsRefusedNotLost) {
 TEST(StepEnd, ThePassOfItsOwnGivesThePlainLoopsResults) {
     const GridGeometry g = geometry();
     const Domain dom = domain_of(g);
-    std::vector<ParticleSet> sets = particles(g, 23);
-    Ordering order(g, sets.size());
-    const Expected e = reference(particles(g, 23), g, dom, order);
-    StepEndBlocks ends;
-    expect_equal(e, talus::move_particles(sets, g, dom, order, PositionStep::add_dx, ends), sets,
-                 order);
+    for (Isa isa : isas()) {
+        std::vector<ParticleSet> sets = particles(g, 23);
+        Ordering order(g, sets.size());
+        const Expected e = reference(particles(g, 23), g, dom, order);
+        StepEndBlocks ends;
+        SCOPED_TRACE(talus::isa_name(isa));
+        expect_equal(e, talus::move_particles(sets, g, dom, order, PositionStep::add_dx, ends, isa),
+                     sets, order);
+    }
 }
 
 } // namespace
@@ -239,7 +283,8 @@ TEST(StepEnd, AParticleWithANonFinitePositionIsCountedOutside) {
     sets[0].dx[0][17] = std::nan("");
     sets[1].dx[1][3] = 1e300;
     StepEndBlocks ends;
-    const StepEnd got = talus::move_particles(sets, g, dom, order, PositionStep::add_dx, ends);
+    const StepEnd got =
+        talus::move_particles(sets, g, dom, order, PositionStep::add_dx, ends, talus::kernel_isa());
     // Particle 17 of set 0 and 3 of set 1 were inside the domain before
     // (the reference counted them so) unless the test's random steps had
     // already taken them out.
