@@ -78,6 +78,7 @@ template <int D, bool Rotate>
     de[5] = dt * (L[2] + L[6]);
     if (divv) divv[k] = L[0] + L[4] + L[8];
     if constexpr (Rotate) hughes_winget(L, dt, &s.stress[6 * p]);
+    out.work_start[k] = stress_work(&s.stress[6 * p], de);
     return true;
 }
 
@@ -111,9 +112,9 @@ block_packs(ParticleSet &s, std::size_t begin, std::size_t count, const double *
         for (int i = 0; i < N; ++i)
             one_by_one |= !(J[i] > 0.0);
         V sig[6];
+        for (int c = 0; c < 6; ++c)
+            load_lanes<N>(&s.stress[6 * p + static_cast<std::size_t>(c)], 6, sig[c]);
         if constexpr (Rotate) {
-            for (int c = 0; c < 6; ++c)
-                load_lanes<N>(&s.stress[6 * p + static_cast<std::size_t>(c)], 6, sig[c]);
             // In plane strain the spin is about z (the gradient has no
             // out-of-plane part); a pack where it is not, goes point by point.
             bool about_z = true;
@@ -140,6 +141,10 @@ block_packs(ParticleSet &s, std::size_t begin, std::size_t count, const double *
                          dt * (Lv[1] + Lv[3]), dt * (Lv[5] + Lv[7]), dt * (Lv[2] + Lv[6])};
         for (int c = 0; c < 6; ++c)
             store_lanes<N>(out.de + 6 * k + static_cast<std::size_t>(c), 6, de[c]);
+        // stress_work's sum in its order, lane by lane.
+        const V w = sig[0] * de[0] + sig[1] * de[1] + sig[2] * de[2] + sig[3] * de[3] +
+                    sig[4] * de[4] + sig[5] * de[5];
+        std::memcpy(out.work_start + k, &w, sizeof w);
         if (divv) {
             const V dv = Lv[0] + Lv[4] + Lv[8];
             std::memcpy(divv + k, &dv, sizeof dv);

@@ -36,16 +36,22 @@ struct BlockIncrement {
     double *F_end; // 9 per point, row-major
     double *de;    // 6 per point, Voigt with engineering shears
     double *rho;
+    // stress_work(start stress, de) per point: the start stress as the
+    // model gets it (rotated for strain-increment models), for the first
+    // half of the stress work's trapezoid (MaterialUpdate). Computed here,
+    // where both are in the vector lanes already.
+    double *work_start;
 };
 
 // Points [begin, begin + count) of s from their velocity gradients L
 // (row-major 3x3, L_stride apart): F at the end of the step (eq. 39), J
 // (kept in the particle), rho (eq. 41), the strain increment (eq. 42), div
 // v and, for strain-increment models, the objectively rotated start stress
-// (Hughes-Winget). Returns the block index of the first point that
-// inverted (J <= 0), or count; the points before it are done, the stress
-// of the inverted one and those after it are untouched. The stress work is
-// the caller's: it needs the end stress too.
+// (Hughes-Winget), and the start stress's work on the increment. Returns
+// the block index of the first point that inverted (J <= 0), or count; the
+// points before it are done, the stress of the inverted one and those
+// after it are untouched. The rest of the stress work is the caller's: it
+// needs the end stress.
 //
 // Points go through in packs across the vector lanes of instruction set
 // `isa` (kinematics.cpp), with the arithmetic of one point at a time:

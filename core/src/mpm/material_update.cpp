@@ -44,6 +44,7 @@ void MaterialUpdate::prepare(const std::vector<ParticleSet> &sets) {
         scr.length.assign(B, length_);
         scr.de.resize(6 * B);
         scr.rho.resize(B);
+        scr.work_start.resize(B);
         scr.stress.resize(6 * B);
         scr.state.resize(ns * B);
     }
@@ -96,9 +97,9 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
                            UpdateFailures &failures) {
     const auto t0 = std::chrono::steady_clock::now();
     Scratch &scr = scratch_[static_cast<std::size_t>(par::thread_index())];
-    const std::size_t done =
-        kinematics_block(s, begin, count, L, L_stride, inc.dt,
-                         {scr.F_end.data(), scr.de.data(), scr.rho.data()}, isa_);
+    const std::size_t done = kinematics_block(
+        s, begin, count, L, L_stride, inc.dt,
+        {scr.F_end.data(), scr.de.data(), scr.rho.data(), scr.work_start.data()}, isa_);
     if (done < count) {
         failures.inverted.record({set, begin + done});
         return;
@@ -109,6 +110,7 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
             const double corr = dilation_correction(*inc.dilation, *inc.geo, s, begin + k, inc.dt);
             for (int d = 0; d < s.dim; ++d)
                 scr.de[6 * k + static_cast<std::size_t>(d)] += corr;
+            scr.work_start[k] = stress_work(&s.stress[6 * (begin + k)], &scr.de[6 * k]);
         }
     // Stress and state go to scratch and are committed after the call: the
     // particle's stay the inputs of any retry.
@@ -139,11 +141,11 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
         return;
     }
     // The stress work over the step (trapezoidal: the rotated start stress
-    // and the end stress on the increment), before the start is overwritten.
+    // and the end stress on the increment; the first from the kinematics).
     for (std::size_t k = 0; k < count; ++k) {
         const std::size_t p = begin + k;
         const double *de = &scr.de[6 * k];
-        s.work[p] += 0.5 * s.J[p] * s.vol0[p] * stress_work(&s.stress[6 * p], de);
+        s.work[p] += 0.5 * s.J[p] * s.vol0[p] * scr.work_start[k];
         s.work[p] += 0.5 * s.J[p] * s.vol0[p] * stress_work(&scr.stress[6 * k], de);
     }
     std::copy_n(scr.stress.data(), 6 * count, &s.stress[6 * begin]);

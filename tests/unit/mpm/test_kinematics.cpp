@@ -45,7 +45,7 @@ std::vector<Isa> isas() {
 
 struct Block {
     ParticleSet s;
-    std::vector<double> L, F_end, de, rho;
+    std::vector<double> L, F_end, de, rho, work;
     Block(int dim, bool finite_strain, std::size_t n) {
         s.dim = dim;
         s.finite_strain = finite_strain;
@@ -57,18 +57,20 @@ struct Block {
         F_end.assign(9 * n, -1.0);
         de.assign(6 * n, -1.0);
         rho.assign(n, -1.0);
+        work.assign(n, -1.0);
     }
     std::size_t run(Isa isa, std::size_t L_stride = 9) {
         return talus::kinematics_block(s, 0, s.n, L.data(), L_stride, dt,
-                                       {F_end.data(), de.data(), rho.data()}, isa);
+                                       {F_end.data(), de.data(), rho.data(), work.data()}, isa);
     }
     // Point by point: a block of one point never fills a pack, so this is
     // the scalar code.
     std::size_t run_one_by_one(std::size_t L_stride = 9) {
         for (std::size_t p = 0; p < s.n; ++p)
-            if (talus::kinematics_block(s, p, 1, L.data() + L_stride * p, L_stride, dt,
-                                        {F_end.data() + 9 * p, de.data() + 6 * p, rho.data() + p},
-                                        Isa::generic) != 1)
+            if (talus::kinematics_block(
+                    s, p, 1, L.data() + L_stride * p, L_stride, dt,
+                    {F_end.data() + 9 * p, de.data() + 6 * p, rho.data() + p, work.data() + p},
+                    Isa::generic) != 1)
                 return p;
         return s.n;
     }
@@ -176,6 +178,7 @@ TEST(Kinematics, EveryInstructionSetGivesTheScalarBits) {
                             EXPECT_TRUE(same(b.F_end.data(), ref.F_end.data(), 9 * n)) << where;
                             EXPECT_TRUE(same(b.de.data(), ref.de.data(), 6 * n)) << where;
                             EXPECT_TRUE(same(b.rho.data(), ref.rho.data(), n)) << where;
+                            EXPECT_TRUE(same(b.work.data(), ref.work.data(), n)) << where;
                             EXPECT_TRUE(same(b.s.J.data(), ref.s.J.data(), n)) << where;
                             EXPECT_TRUE(same(b.s.divv.data(), ref.s.divv.data(), n)) << where;
                             EXPECT_TRUE(same(b.s.stress.data(), ref.s.stress.data(), 6 * n))
