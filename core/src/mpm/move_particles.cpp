@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <utility>
 
 namespace talus {
@@ -163,19 +164,22 @@ template <int N, int D, bool Add>
 end_packs(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &geo, const Domain &domain,
           const Ordering &order, std::size_t begin, std::size_t count, Partial &r) {
     using V = typename Lanes<N>::V;
-    using M = typename Lanes<N>::I; // a lane's compare result: 0 or -1
     typedef std::int32_t I32 __attribute__((vector_size(N * sizeof(std::int32_t))));
     if (count < N) return 0;
-    V lo[D], hi[D], origin[D], last_cell[D];
-    M closed_lo[D], closed_hi[D];
+    // Every test is a compare of doubles selecting doubles, and the counts
+    // are sums of ones in doubles (exact below 2^53): GCC 12 built the
+    // lanes of an integer mask one by one from scalar compares. An open
+    // face's bound is an infinity, which nothing passes (nor NaN).
+    constexpr double inf = std::numeric_limits<double>::infinity();
+    V lo[D], hi[D], stop_lo[D], stop_hi[D], origin[D], last_cell[D];
     double *x[D];
     const double *dx[D], *v[D];
     for (int d = 0; d < D; ++d) {
         const std::size_t dd = static_cast<std::size_t>(d);
         lo[d] = V{} + domain.lo[dd];
         hi[d] = V{} + domain.hi[dd];
-        closed_lo[d] = M{} - (domain.closed_lo[dd] ? 1 : 0);
-        closed_hi[d] = M{} - (domain.closed_hi[dd] ? 1 : 0);
+        stop_lo[d] = V{} + (domain.closed_lo[dd] ? domain.lo[dd] : -inf);
+        stop_hi[d] = V{} + (domain.closed_hi[dd] ? domain.hi[dd] : inf);
         origin[d] = V{} + geo.origin[dd];
         last_cell[d] = V{} + static_cast<double>(geo.cells[dd] - 1);
         x[d] = s.x[dd].data();
@@ -188,12 +192,14 @@ end_packs(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &geo, c
     const double *c = s.c.data();
     double speed_max = r.speed;
     V depth = V{} + r.depth;
-    M outside{}, held{}, moved{};
+    V outside{}, held{}, moved{};
+    // The arms of every select are vectors: with a scalar arm GCC 12
+    // builds the result lane by lane, through branches.
+    const V zero{}, one = zero + 1.0;
     std::size_t k = 0;
     for (; k + N <= count; k += N) {
         const std::size_t p = begin + k;
-        M in = M{} - 1;
-        V v2{}, ci{}, sl{};
+        V out{}, v2{}, ci{}, sl{};
         double stride = 1.0;
         for (int d = 0; d < D; ++d) {
             V xd, vd;
@@ -204,19 +210,29 @@ end_packs(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &geo, c
                 load_vector<N>(dx[d] + p, step);
                 xd = xd + step;
             }
-            const M below = closed_lo[d] & (xd < lo[d]);
-            const M above = closed_hi[d] & (xd > hi[d]);
-            const V over = below ? lo[d] - xd : above ? xd - hi[d] : V{};
+            // Through a closed face: back onto it, counted, the overshoot
+            // kept (only one of the two can hold). Selects of one condition
+            // each: nested ones sharing their conditions GCC 12 built lane
+            // by lane. The overshoot past an open face is -inf (or NaN at an
+            // infinite position), which no maximum takes, as the scalar
+            // loop's 0 for it.
+            held += xd < stop_lo[d] ? one : zero;
+            held += xd > stop_hi[d] ? one : zero;
+            const V under = stop_lo[d] - xd, over = xd - stop_hi[d];
+            depth = depth < under ? under : depth;
             depth = depth < over ? over : depth;
-            held -= below | above;
-            xd = below ? lo[d] : above ? hi[d] : xd;
+            xd = xd < stop_lo[d] ? stop_lo[d] : xd;
+            xd = xd > stop_hi[d] ? stop_hi[d] : xd;
             store_vector<N>(x[d] + p, xd);
-            in &= (xd >= lo[d]) & (xd <= hi[d]);
+            // Sums, not a select of a select: GCC 12 folds that into an AND
+            // of two masks, which it builds lane by lane without AVX-512DQ.
+            out += xd >= lo[d] ? zero : one;
+            out += xd <= hi[d] ? zero : one;
             v2 += vd * vd;
             // GridGeometry::clamped_cell: NaN and below 0 to 0, at or past
             // the last cell to it, else truncated.
             V xi = (xd - origin[d]) * inv_h;
-            xi = xi >= 0.0 ? xi : V{};
+            xi = xi >= zero ? xi : zero;
             xi = xi >= last_cell[d] ? last_cell[d] : xi;
             const V cd = __builtin_convertvector(__builtin_convertvector(xi, I32), V);
             ci += cd * stride;
@@ -230,14 +246,16 @@ end_packs(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &geo, c
                 sl = q < last_slab ? q : last_slab;
             }
         }
-        outside -= ~in;
+        outside += out > zero ? one : zero;
         // The square root lane by lane (GCC has no vector form of it that
         // keeps errno's semantics); max as std::max: a NaN never enters.
+        // (Skipping the packs that cannot pass the maximum so far was
+        // slower: in a block of nearly equal wave speeds many can.)
         for (int i = 0; i < N; ++i)
             speed_max = std::max(speed_max, c[p + static_cast<std::size_t>(i)] + std::sqrt(v2[i]));
         I32 old_slab;
         std::memcpy(&old_slab, mark.slab + p, sizeof old_slab);
-        moved -= sl != __builtin_convertvector(old_slab, V);
+        moved += sl == __builtin_convertvector(old_slab, V) ? zero : one;
         const I32 new_slab = __builtin_convertvector(sl, I32);
         std::memcpy(mark.slab + p, &new_slab, sizeof new_slab);
         // The cell as a uint32 (below 2^32: Marks): shifted into int32's
