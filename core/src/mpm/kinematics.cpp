@@ -108,25 +108,20 @@ block_packs(ParticleSet &s, std::size_t begin, std::size_t count, const double *
         }
         V J;
         deformation<D>(F0, Lv, dt, F1, J);
-        bool one_by_one = false; // an inverted point, or a spin off the plane
-        for (int i = 0; i < N; ++i)
-            one_by_one |= !(J[i] > 0.0);
+        // An inverted point (J <= 0 or NaN), or (plane strain, rotated
+        // stress) a spin off the plane: the pack goes point by point. Lanes
+        // of ones where one holds (lanes.hpp, any_lane).
+        const V zero{}, one = zero + 1.0;
+        V odd = J > zero ? zero : one;
+        if constexpr (Rotate && D == 2)
+            for (int c : {2, 5, 6, 7})
+                odd += Lv[c] == zero ? zero : one;
+        const bool one_by_one = any_lane<N>(odd);
         V sig[6];
         for (int c = 0; c < 6; ++c)
             load_lanes<N>(&s.stress[6 * p + static_cast<std::size_t>(c)], 6, sig[c]);
-        if constexpr (Rotate) {
-            // In plane strain the spin is about z (the gradient has no
-            // out-of-plane part); a pack where it is not, goes point by point.
-            bool about_z = true;
-            if constexpr (D == 2)
-                for (int c : {2, 5, 6, 7})
-                    for (int i = 0; i < N; ++i)
-                        about_z &= Lv[c][i] == 0.0;
-            if (!about_z)
-                one_by_one = true;
-            else if (!one_by_one)
-                hughes_winget_lanes<D == 3>(Lv, dt, sig);
-        }
+        if constexpr (Rotate)
+            if (!one_by_one) hughes_winget_lanes<D == 3>(Lv, dt, sig);
         if (one_by_one) [[unlikely]] {
             const std::size_t done = by_point(k, k + N);
             if (done < k + N) return done;

@@ -88,6 +88,27 @@ template <int N>
     *reinterpret_cast<typename Lanes<N>::U *>(a) = v;
 }
 
+// Whether any lane of v is positive (v: lanes of ones and zeros, from
+// selects with vector arms). Summed by halves within the vector: a test per
+// lane, or an AND of compare masks, GCC 12 builds from scalar compares one
+// lane at a time when the target has no 64-bit mask vectors (AVX-512
+// without DQ).
+template <int N>
+[[gnu::always_inline]] inline bool any_lane(const typename Lanes<N>::V &lanes) {
+    typename Lanes<N>::V v = lanes;
+    if constexpr (N == 8) {
+        v += __builtin_shufflevector(v, v, 4, 5, 6, 7, 0, 1, 2, 3);
+        v += __builtin_shufflevector(v, v, 2, 3, 0, 1, 6, 7, 4, 5);
+        v += __builtin_shufflevector(v, v, 1, 0, 3, 2, 5, 4, 7, 6);
+    } else if constexpr (N == 4) {
+        v += __builtin_shufflevector(v, v, 2, 3, 0, 1);
+        v += __builtin_shufflevector(v, v, 1, 0, 3, 2);
+    } else {
+        v += __builtin_shufflevector(v, v, 1, 0);
+    }
+    return v[0] > 0.0;
+}
+
 // floor(x) in every lane, as fast_floor (shape_functions.hpp) does it for
 // one: the truncation, less one where it rounded up. (Out through a
 // reference, as every vector here.)

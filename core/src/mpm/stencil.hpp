@@ -371,25 +371,32 @@ struct StencilPack {
     template <bool Offsets, class Load>
     [[gnu::always_inline]] bool eval_with(const GridGeometry &g, const Load &load) {
         V xi[D];
-        bool inner = true;
+        // Lanes of ones for a particle near a face (or at NaN), tested once
+        // for the pack (any_lane, lanes.hpp: a test per lane was built from
+        // scalar compares).
+        const V zero{}, one = zero + 1.0;
+        V near{};
         for (int d = 0; d < D; ++d) {
             const std::size_t dd = static_cast<std::size_t>(d);
             V x;
             load(dd, x);
             xi[d] = (x - g.origin[dd]) * g.inv_h;
-            const double hi = g.cells[dd] - S::interior_margin;
-            for (int j = 0; j < N; ++j)
-                inner &= xi[d][j] >= S::interior_margin && xi[d][j] < hi;
+            const V lo = zero + static_cast<double>(S::interior_margin);
+            const V hi = zero + (g.cells[dd] - S::interior_margin);
+            near += xi[d] >= lo ? zero : one;
+            near += xi[d] < hi ? zero : one;
         }
-        if (!inner) return false;
+        if (any_lane<N>(near)) return false;
+        typedef int Ints __attribute__((vector_size(N * sizeof(int))));
         for (int d = 0; d < D; ++d) {
             V fl;
             floor_lanes<N>(xi[d] - S::floor_shift, fl);
             V wv[W], dwv[W];
             S::pieces(xi[d], fl, wv, dwv);
             const V first = fl + static_cast<double>(S::base_offset);
-            for (int j = 0; j < N; ++j)
-                base[d][j] = static_cast<int>(first[j]);
+            // Whole numbers within the grid: the conversion is exact.
+            const Ints first_int = __builtin_convertvector(first, Ints);
+            std::memcpy(base[d], &first_int, sizeof first_int);
             for (int k = 0; k < W; ++k) {
                 store_vector<N>(w[d][k], wv[k]);
                 store_vector<N>(dw[d][k], dwv[k] * g.inv_h);

@@ -52,13 +52,20 @@ template <bool AnyAxis, class T, class Lm>
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j)
             QS[i][j] = Q[i][0] * S[0][j] + Q[i][1] * S[1][j] + Q[i][2] * S[2][j];
-    const auto about_z = (a1 == 0.0) & (a2 == 0.0);
+    // a1 = a2 = 0 as one compare, |a1| + |a2| == 0 (NaN fails both
+    // ways): on vectors, an AND of two compare masks GCC 12 builds lane by
+    // lane from scalar compares where the target has no 64-bit mask vectors
+    // (AVX-512 without DQ); so it does a select nested in another that
+    // shares their conditions.
+    const T abs_a = (a1 < 0.0 ? -a1 : a1) + (a2 < 0.0 ? -a2 : a2);
+    const auto about_z = abs_a == 0.0;
     // Voigt order: (0 0), (1 1), (2 2), (0 1), (1 2), (0 2).
     constexpr int row[6] = {0, 1, 2, 0, 1, 0}, col[6] = {0, 1, 2, 1, 2, 2};
     for (int m = 0; m < 6; ++m) {
         const int i = row[m], j = col[m];
         const T general = QS[i][0] * Q[j][0] + QS[i][1] * Q[j][1] + QS[i][2] * Q[j][2];
-        sig[m] = still ? sig[m] : about_z ? r[m] : general;
+        const T turned = about_z ? r[m] : general;
+        sig[m] = still ? sig[m] : turned;
     }
 }
 
