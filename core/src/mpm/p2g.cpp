@@ -11,6 +11,26 @@ namespace talus {
 
 namespace {
 
+// Asks for the lines a pack of particles from p on will read (one line of
+// each column holds 8 of them; the stress, 48 bytes each, six), a few packs
+// ahead. The slabs' particles are contiguous runs in memory, but the
+// hardware's prefetch did not keep up with the ten streams of a pass
+// that visits them through an index list: with this, P2G took 0.26 s per
+// 25M particle-steps in 2D (one thread) against 0.33 s. Two, three or six
+// packs ahead measured alike.
+inline constexpr long kPacksAhead = 3;
+[[gnu::always_inline]] inline void prefetch_pack(const ParticleSet &s, std::size_t p) {
+    for (int d = 0; d < s.dim; ++d) {
+        __builtin_prefetch(&s.x[static_cast<std::size_t>(d)][p], 0, 3);
+        __builtin_prefetch(&s.v[static_cast<std::size_t>(d)][p], 0, 3);
+    }
+    __builtin_prefetch(&s.mass[p], 0, 3);
+    __builtin_prefetch(&s.J[p], 0, 3);
+    __builtin_prefetch(&s.vol0[p], 0, 3);
+    for (std::size_t k = 0; k < 48; k += 8)
+        __builtin_prefetch(&s.stress[6 * p + k], 0, 3);
+}
+
 // The particles [begin, end) of set s (indices), with the node-record
 // arithmetic in L (stencil.hpp).
 template <class L, Isa I, int D, class S, bool Mass, bool Momentum, bool Affine, bool Forces>
@@ -90,6 +110,7 @@ template <class L, Isa I, int D, class S, bool Mass, bool Momentum, bool Affine,
         constexpr int N = kPointLanes<I>;
         StencilPack<D, S, N> pack;
         for (; end - k >= N; k += N) {
+            if (end - k >= (kPacksAhead + 1) * N) prefetch_pack(s, k[kPacksAhead * N]);
             if (pack.template eval<Affine>(g, s, k)) [[likely]] {
                 for (int j = 0; j < N; ++j)
                     scatter(pack.lane(static_cast<std::size_t>(j)), k[j]);
