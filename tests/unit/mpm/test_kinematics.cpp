@@ -18,6 +18,7 @@
 // - an inverted point: the points before it done, its J kept, nothing
 //   after it touched.
 #include "isa.hpp"
+#include "isas.hpp"
 #include "kinematics.hpp"
 
 #include <talus/sdk/voigt.hpp>
@@ -33,15 +34,6 @@ namespace {
 
 using talus::Isa;
 using talus::ParticleSet;
-
-// The instruction sets this CPU runs (the widest is kernel_isa()'s).
-std::vector<Isa> isas() {
-    std::vector<Isa> v{Isa::generic};
-    const Isa widest = talus::kernel_isa();
-    if (widest == Isa::avx2 || widest == Isa::avx512) v.push_back(Isa::avx2);
-    if (widest == Isa::avx512) v.push_back(Isa::avx512);
-    return v;
-}
 
 struct Block {
     ParticleSet s;
@@ -165,7 +157,7 @@ TEST(Kinematics, EveryInstructionSetGivesTheScalarBits) {
                     for (bool off_plane : {false, true}) {
                         Block ref = random_block(dim, finite, n, 5, off_plane);
                         ASSERT_EQ(ref.run_one_by_one(stride), n);
-                        for (Isa isa : isas()) {
+                        for (Isa isa : runnable_isas()) {
                             Block b = random_block(dim, finite, n, 5, off_plane);
                             ASSERT_EQ(b.run(isa, stride), n);
                             const std::string where =
@@ -189,7 +181,7 @@ TEST(Kinematics, EveryInstructionSetGivesTheScalarBits) {
 
 TEST(Kinematics, AnInvertedPointStopsTheBlockThere) {
     for (int dim : {2, 3})
-        for (Isa isa : isas()) {
+        for (Isa isa : runnable_isas()) {
             const std::size_t n = 20, bad = 11;
             Block b = random_block(dim, false, n, 9);
             const Block start = random_block(dim, false, n, 9);

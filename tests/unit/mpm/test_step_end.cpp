@@ -9,6 +9,7 @@
 // alike, since none of them involves a sum in floating point. So must the
 // block's packs across the vector lanes of every instruction set.
 #include "isa.hpp"
+#include "isas.hpp"
 #include "move_particles.hpp"
 #include "ordering.hpp"
 
@@ -35,15 +36,6 @@ using talus::ParticleSet;
 using talus::PositionStep;
 using talus::StepEnd;
 using talus::StepEndBlocks;
-
-// The instruction sets this machine runs.
-std::vector<Isa> isas() {
-    std::vector<Isa> v{Isa::generic};
-    const Isa widest = talus::kernel_isa();
-    if (widest == Isa::avx2 || widest == Isa::avx512) v.push_back(Isa::avx2);
-    if (widest == Isa::avx512) v.push_back(Isa::avx512);
-    return v;
-}
 
 // A grid of 40 x 24 (x 6) cells of 0.05 m from (-1, 0.5, 2); in 2D closed
 // x- and y- faces, free x+ and y+; in 3D also a closed z+ face and a free
@@ -181,7 +173,7 @@ TEST(StepEnd, BlocksInAnyOrderAndOfAnySizeGiveThePlainLoopsResults) {
     std::mt19937 shuffle(7);
     for (int dim : {2, 3})
         for (bool moved : {false, true})
-            for (Isa isa : isas()) {
+            for (Isa isa : runnable_isas()) {
                 const GridGeometry g = geometry(dim);
                 const Domain dom = domain_of(g);
                 const PositionStep step =
@@ -242,7 +234,7 @@ TEST(StepEnd, AMisalignedBlockIsRefusedNotLost) {
 TEST(StepEnd, ThePassOfItsOwnGivesThePlainLoopsResults) {
     const GridGeometry g = geometry();
     const Domain dom = domain_of(g);
-    for (Isa isa : isas()) {
+    for (Isa isa : runnable_isas()) {
         std::vector<ParticleSet> sets = particles(g, 23);
         Ordering order(g, sets.size());
         const Expected e = reference(particles(g, 23), g, dom, order);
