@@ -88,6 +88,15 @@ template <int N>
     *reinterpret_cast<typename Lanes<N>::U *>(a) = v;
 }
 
+#if defined(__has_builtin)
+#if __has_builtin(__builtin_shufflevector)
+#define TALUS_HAS_SHUFFLEVECTOR 1
+#endif
+#endif
+#ifndef TALUS_HAS_SHUFFLEVECTOR
+#define TALUS_HAS_SHUFFLEVECTOR 0
+#endif
+
 // Whether any lane of v is positive (v: lanes of ones and zeros, from
 // selects with vector arms). Summed by halves within the vector: a test per
 // lane, or an AND of compare masks, GCC 12 builds from scalar compares one
@@ -96,6 +105,7 @@ template <int N>
 template <int N>
 [[gnu::always_inline]] inline bool any_lane(const typename Lanes<N>::V &lanes) {
     typename Lanes<N>::V v = lanes;
+#if TALUS_HAS_SHUFFLEVECTOR
     if constexpr (N == 8) {
         v += __builtin_shufflevector(v, v, 4, 5, 6, 7, 0, 1, 2, 3);
         v += __builtin_shufflevector(v, v, 2, 3, 0, 1, 6, 7, 4, 5);
@@ -107,6 +117,13 @@ template <int N>
         v += __builtin_shufflevector(v, v, 1, 0);
     }
     return v[0] > 0.0;
+#else
+    // Compilers without it (GCC before 12): the lanes one by one.
+    double sum = 0.0;
+    for (int i = 0; i < N; ++i)
+        sum += v[i];
+    return sum > 0.0;
+#endif
 }
 
 // floor(x) in every lane, as fast_floor (shape_functions.hpp) does it for
