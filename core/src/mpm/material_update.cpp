@@ -8,7 +8,6 @@
 #endif
 
 #include <algorithm>
-#include <chrono>
 
 namespace talus {
 
@@ -81,21 +80,16 @@ double *MaterialUpdate::gradient_buffer() {
     return scratch_[static_cast<std::size_t>(par::thread_index())].L.data();
 }
 
-double MaterialUpdate::collect() {
-    double seconds = 0.0;
+void MaterialUpdate::collect() {
     for (Scratch &scr : scratch_) {
         cut_steps_ += scr.cuts;
         scr.cuts = 0;
-        seconds += scr.seconds;
-        scr.seconds = 0.0;
     }
-    return seconds / par::max_threads();
 }
 
 void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, std::size_t count,
                            const double *L, std::size_t L_stride, const Increment &inc,
                            UpdateFailures &failures) {
-    const auto t0 = std::chrono::steady_clock::now();
     Scratch &scr = scratch_[static_cast<std::size_t>(par::thread_index())];
     const std::size_t done = kinematics_block(
         s, begin, count, L, L_stride, inc.dt,
@@ -151,7 +145,6 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
     std::copy_n(scr.stress.data(), 6 * count, &s.stress[6 * begin]);
     if (ns) std::copy_n(scr.state.data(), ns * count, &s.state[ns * begin]);
     std::copy_n(scr.F_end.data(), 9 * count, &s.F[9 * begin]);
-    scr.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 // Advances points [begin, begin + count) of set s over [t, t + dt] from

@@ -102,10 +102,8 @@ class MaterialUpdate {
     // Plugin cut-step requests honoured by sub-stepping so far.
     long cut_steps() const { return cut_steps_; }
     void set_cut_steps(long n) { cut_steps_ = n; } // a restored run's count
-    // Seconds the threads spent in block() since the last call, divided by
-    // the thread count (the phase's share of a pass it is fused into); also
-    // adds up the threads' cut steps.
-    double collect();
+    // Adds up the threads' cut steps since the last call.
+    void collect();
 
   private:
     // One call's inputs and where its outputs go: the particle arrays and
@@ -132,7 +130,6 @@ class MaterialUpdate {
         std::vector<double> stress, state;              // the block's outputs before commit
         std::deque<Level> levels; // grown at the end while deeper levels run: references hold
         long cuts = 0;
-        double seconds = 0.0;
     };
     bool advance(ParticleSet &s, std::size_t set, std::size_t begin, std::size_t count, double t,
                  double dt, long step, double fraction, std::size_t depth, const Inputs &in,
