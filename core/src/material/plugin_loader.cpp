@@ -685,7 +685,9 @@ namespace {
 #define TALUS_SCREEN_CLONES
 #endif
 
-// Whether any of the count values is NaN or infinite.
+// Whether any of the count values is NaN or infinite. The SDK's any_nonfinite
+// is the same test for a plugin's inputs; the core does not use the SDK (the
+// C header is all it shares with plugins), so each side keeps its own.
 TALUS_SCREEN_CLONES bool nonfinite(const double *p, std::size_t count) {
     // The exponent lies in the upper 32 bits: a 32-bit test is one the
     // x86-64 baseline (SSE2) has in vector form; a 64-bit one is not.
@@ -755,9 +757,6 @@ MaterialInstance::Result MaterialInstance::call(talus_batch &b, bool setup) cons
     // one with an OR reduction, which the compiler vectorises (a sum of
     // x * 0, the other branch-free screen, is one long chain of dependent
     // floating-point adds). The point is looked for only when it trips.
-    // The SDK's batch loop has the same test for a plugin's inputs; the
-    // core does not use the SDK (the C header is all it shares with
-    // plugins), so each side keeps its own few lines.
     const std::size_t n = b.n_points, ns = b.state_size;
     const bool want_c = (b.flags & TALUS_BATCH_WANT_WAVE_SPEED) != 0;
     const bool want_t = (b.flags & TALUS_BATCH_WANT_TANGENT) != 0;
@@ -766,7 +765,7 @@ MaterialInstance::Result MaterialInstance::call(talus_batch &b, bool setup) cons
     const bool speeds_ok = !want_c || speeds_valid(b.wave_speed, n);
     if (!screen && speeds_ok) return r;
     for (std::size_t i = 0; i < n; ++i) {
-        const bool bad_c = want_c && !(b.wave_speed[i] > 0.0 && b.wave_speed[i] < INFINITY);
+        const bool bad_c = want_c && !speeds_valid(b.wave_speed + i, 1);
         const bool bad = nonfinite(b.stress_end + 6 * i, 6) ||
                          (ns && nonfinite(b.state_end + ns * i, ns)) ||
                          (want_t && nonfinite(b.tangent + 36 * i, 36)) || bad_c;

@@ -104,6 +104,7 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
             const double corr = dilation_correction(*inc.dilation, *inc.geo, s, begin + k, inc.dt);
             for (int d = 0; d < s.dim; ++d)
                 scr.de[6 * k + static_cast<std::size_t>(d)] += corr;
+            // The kinematics' start work was on the increment before this.
             scr.work_start[k] = stress_work(&s.stress[6 * (begin + k)], &scr.de[6 * k]);
         }
     // Stress and state go to scratch and are committed after the call: the

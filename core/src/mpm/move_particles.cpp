@@ -213,9 +213,9 @@ end_packs(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &geo, c
             // Through a closed face: back onto it, counted, the overshoot
             // kept (only one of the two can hold). Selects of one condition
             // each: nested ones sharing their conditions GCC 12 built lane
-            // by lane. The overshoot past an open face is -inf (or NaN at an
-            // infinite position), which no maximum takes, as the scalar
-            // loop's 0 for it.
+            // by lane. Where the scalar loop takes 0 as the overshoot (inside,
+            // or at an open face), these are negative, -inf or NaN, none of
+            // which the maximum (from 0) takes.
             held += xd < stop_lo[d] ? one : zero;
             held += xd > stop_hi[d] ? one : zero;
             const V under = stop_lo[d] - xd, over = xd - stop_hi[d];

@@ -17,7 +17,8 @@ namespace {
 // hardware's prefetch did not keep up with the ten streams of a pass
 // that visits them through an index list: with this, P2G took 0.26 s per
 // 25M particle-steps in 2D (one thread) against 0.33 s. Two, three or six
-// packs ahead measured alike.
+// packs ahead measured alike. (The lines lie within the arrays: a slab's
+// indices increase, so the pack's last one is at least p + 7, and p + 7 < n.)
 inline constexpr long kPacksAhead = 3;
 [[gnu::always_inline]] inline void prefetch_pack(const ParticleSet &s, std::size_t p) {
     for (int d = 0; d < s.dim; ++d) {

@@ -52,11 +52,11 @@ template <bool AnyAxis, class T, class Lm>
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j)
             QS[i][j] = Q[i][0] * S[0][j] + Q[i][1] * S[1][j] + Q[i][2] * S[2][j];
-    // a1 = a2 = 0 as one compare, |a1| + |a2| == 0 (NaN fails both
-    // ways): on vectors, an AND of two compare masks GCC 12 builds lane by
-    // lane from scalar compares where the target has no 64-bit mask vectors
-    // (AVX-512 without DQ); so it does a select nested in another that
-    // shares their conditions.
+    // a1 = a2 = 0 as the one compare |a1| + |a2| == 0 (false for NaN, as
+    // each compare), and the two selects apart: on vectors, GCC 12 builds
+    // an AND of two compare masks, or a select nested in another sharing
+    // their conditions, lane by lane from scalar compares where the target
+    // has no 64-bit mask vectors (AVX-512 without DQ).
     const T abs_a = (a1 < 0.0 ? -a1 : a1) + (a2 < 0.0 ? -a2 : a2);
     const auto about_z = abs_a == 0.0;
     // Voigt order: (0 0), (1 1), (2 2), (0 1), (1 2), (0 2).
