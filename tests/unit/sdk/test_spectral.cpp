@@ -11,8 +11,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <random>
+#include <vector>
 
 namespace {
 
@@ -131,6 +133,56 @@ TEST(SymmetricEigen, NaNInGivesNaNOut) {
             EXPECT_TRUE(e.values.hasNaN()) << i << j;
             EXPECT_TRUE(e.compose(V3::Ones()).hasNaN()) << i << j;
         }
+}
+
+// symmetric_eigen_pair decomposes two matrices in the two lanes of one
+// vector: each lane must be the single decomposition bit for bit (a model's
+// point may be decomposed in a pair or alone, depending on its batch), also
+// when only one lane needs the scaling, is a multiple of the identity or
+// holds NaN, which must not reach the other lane.
+TEST(SymmetricEigen, PairLanesAreTheSingleDecompositionBitForBit) {
+    std::mt19937 gen(11);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    std::vector<Mat3> m;
+    for (int k = 0; k < 200; ++k) {
+        Mat3 a;
+        for (int i = 0; i < 3; ++i)
+            for (int j = i; j < 3; ++j)
+                a(i, j) = a(j, i) = 1e4 * u(gen);
+        m.push_back(a);
+    }
+    const Mat3 r = random_rotation(gen);
+    m.push_back(r * V3(2.0, 1.0, 1.0).asDiagonal() * r.transpose()); // a double value
+    m.push_back(1e-70 * m[0]);                                       // scaled up
+    m.push_back(1e70 * m[1]);                                        // scaled down
+    m.push_back(-3.5 * Mat3::Identity());
+    m.push_back(Mat3::Zero());
+    Mat3 nan = m[2];
+    nan(0, 2) = nan(2, 0) = std::numeric_limits<double>::quiet_NaN();
+    m.push_back(nan);
+    auto same = [](const talus::sdk::SymmetricEigen &a, const talus::sdk::SymmetricEigen &b) {
+        return std::memcmp(a.values.data(), b.values.data(), sizeof(double) * 3) == 0 &&
+               std::memcmp(a.vectors.data(), b.vectors.data(), sizeof(double) * 9) == 0;
+    };
+    // Every matrix beside every special one, and the random ones in pairs.
+    const std::size_t specials = 6;
+    for (std::size_t i = 0; i < m.size(); ++i)
+        for (std::size_t j = 0; j < m.size(); ++j) {
+            if (i < m.size() - specials && j < m.size() - specials && j != i + 1) continue;
+            talus::sdk::SymmetricEigen a, b;
+            talus::sdk::symmetric_eigen_pair(m[i], m[j], a, b);
+            EXPECT_TRUE(same(a, talus::sdk::symmetric_eigen(m[i]))) << i << " beside " << j;
+            EXPECT_TRUE(same(b, talus::sdk::symmetric_eigen(m[j]))) << j << " beside " << i;
+            EXPECT_EQ(a.values.hasNaN(), m[i].hasNaN()) << i << " beside " << j;
+            EXPECT_EQ(b.values.hasNaN(), m[j].hasNaN()) << j << " beside " << i;
+        }
+    // And the pair's lanes are decompositions (the single one's accuracy
+    // is tested above; this catches a pair that gives both lanes one
+    // matrix's result).
+    talus::sdk::SymmetricEigen a, b;
+    talus::sdk::symmetric_eigen_pair(m[3], m[4], a, b);
+    EXPECT_LE((a.compose(a.values) - m[3]).cwiseAbs().maxCoeff(), kTol * 1e4);
+    EXPECT_LE((b.compose(b.values) - m[4]).cwiseAbs().maxCoeff(), kTol * 1e4);
 }
 
 TEST(SymmetricEigen, CubicRootIsSmithsFormula) {
