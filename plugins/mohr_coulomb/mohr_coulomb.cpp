@@ -218,25 +218,88 @@ struct MohrCoulomb {
         normal_ << 1.0, 1.0, 1.0, 0.0, 0.0, 0.0;
     }
 
+    // The points of a chunk whose trial stress is clearly inside the
+    // surface (clearly_elastic), finished in one loop without the SDK's
+    // per-point set-up: most points of a batch (74 % of the 3D benchmark
+    // block's point-steps). The others go to update_pair() and update().
+    void quick_update(const talus::sdk::Points &p) const {
+        for (std::size_t k = 0; k < p.n; ++k) {
+            Vec6 trial;
+            if (!elastic_trial(Eigen::Map<const Vec6>(p.stress_start + 6 * k),
+                               Eigen::Map<const Vec6>(p.strain_increment + 6 * k),
+                               p.state_start[3 * k], trial))
+                continue;
+            Eigen::Map<Vec6>(p.stress_end + 6 * k) = trial;
+            p.state_end[3 * k + 2] = talus_mc::kElastic;
+            if (p.tangent) Eigen::Map<Mat6>(p.tangent + 36 * k) = De_; // symmetric
+            p.done[k] = 1;
+        }
+        // Every point's, as wave_speed() gives it (update() overwrites the
+        // ones it takes): a loop the compiler vectorises.
+        if (p.wave_speed)
+            for (std::size_t k = 0; k < p.n; ++k)
+                p.wave_speed[k] = std::sqrt((el_.lambda + 2.0 * el_.shear) / p.density[k]);
+    }
+
+    // update() for two points, their decompositions side by side.
+    void update_pair(const talus::sdk::PointIn &in, talus::sdk::PointOut &out,
+                     const talus::sdk::PointIn &in2, talus::sdk::PointOut &out2) const {
+        const Vec6 trial = in.stress + hooke(in.strain_increment);
+        const Vec6 trial2 = in2.stress + hooke(in2.strain_increment);
+        Spectral sp, sp2;
+        talus::sdk::symmetric_eigen_pair(talus::sdk::stress_to_matrix(trial),
+                                         talus::sdk::stress_to_matrix(trial2), sp, sp2);
+        finish(in, out, trial, sp);
+        finish(in2, out2, trial2, sp2);
+    }
+
     void update(const talus::sdk::PointIn &in, talus::sdk::PointOut &out) const {
-        const double kappa_n = in.state[0];
-        const Strength st_n = strength(kappa_n);
-        Vec6 trial = in.stress + hooke(in.strain_increment);
-        const double bound = softening_ ? lode_bound(st_n) : fixed_lode_bound_;
-        const double inv_bound = softening_ ? 1.0 / bound : fixed_inv_lode_bound_;
-        if (clearly_elastic(trial, st_n, bound, inv_bound)) {
+        Vec6 trial;
+        if (elastic_trial(in.stress, in.strain_increment, in.state[0], trial)) {
             out.stress = trial;
             out.state[2] = talus_mc::kElastic;
             if (out.tangent) *out.tangent = De_;
             return;
         }
+        finish(in, out, trial, talus::sdk::symmetric_eigen(talus::sdk::stress_to_matrix(trial)));
+    }
+
+    // The set-up call (ABI 1.1): the user's initial stress is returned to
+    // the surface by update's projection (a zero increment returns the
+    // projected stress, see the head of this file), and a stress that moved
+    // is reported through the host's log, naming the particle and how far
+    // it moved, rather than passing silently.
+    void init_state(const talus::sdk::PointIn &in, talus::sdk::PointOut &out) const {
+        update(in, out);
+        const double moved = (out.stress - in.stress).cwiseAbs().maxCoeff();
+        if (moved > 0.0) {
+            char msg[200];
+            std::snprintf(msg, sizeof msg,
+                          "point %lld: the initial stress lies outside the yield surface; "
+                          "returned to it (largest component change %.4g Pa)",
+                          static_cast<long long>(in.point_id), moved);
+            talus::sdk::log_warning(msg);
+        }
+    }
+
+    double wave_speed(const talus::sdk::PointIn &in, const talus::sdk::PointOut &) const {
+        return std::sqrt((el_.lambda + 2.0 * el_.shear) / in.density);
+    }
+
+  private:
+    // The update from the decomposition of the trial stress on.
+    void finish(const talus::sdk::PointIn &in, talus::sdk::PointOut &out, Vec6 trial,
+                Spectral sp) const {
+        const double kappa_n = in.state[0];
+        const Strength st_n = strength(kappa_n);
+        const double bound = softening_ ? lode_bound(st_n) : fixed_lode_bound_;
+        const double inv_bound = softening_ ? 1.0 / bound : fixed_inv_lode_bound_;
         // The candidates' systems: solved once without softening, else
         // each as its candidate is tried.
         auto return_of = [&](const V3 &t, int h) {
             return softening_ ? talus_mc::return_map(t, st_n, el_, h)
                               : talus_mc::return_map(t, st_n, *fixed_systems_, h);
         };
-        Spectral sp = talus::sdk::symmetric_eigen(talus::sdk::stress_to_matrix(trial));
         // The last return's kind is tried first: a point that keeps
         // yielding mostly stays on the same part of the surface, and any
         // valid candidate gives the same stress (the candidates partition
@@ -293,29 +356,16 @@ struct MohrCoulomb {
         if (out.tangent) *out.tangent = spectral_tangent(sp, r.stress, *P);
     }
 
-    // The set-up call (ABI 1.1): the user's initial stress is returned to
-    // the surface by update's projection (a zero increment returns the
-    // projected stress, see the head of this file), and a stress that moved
-    // is reported through the host's log, naming the particle and how far
-    // it moved, rather than passing silently.
-    void init_state(const talus::sdk::PointIn &in, talus::sdk::PointOut &out) const {
-        update(in, out);
-        const double moved = (out.stress - in.stress).cwiseAbs().maxCoeff();
-        if (moved > 0.0) {
-            char msg[200];
-            std::snprintf(msg, sizeof msg,
-                          "point %lld: the initial stress lies outside the yield surface; "
-                          "returned to it (largest component change %.4g Pa)",
-                          static_cast<long long>(in.point_id), moved);
-            talus::sdk::log_warning(msg);
-        }
+    // The trial stress of an increment from s0 at kappa_n, and whether it
+    // is clearly inside the surface (the elastic step's whole result).
+    bool elastic_trial(const Vec6 &s0, const Vec6 &de, double kappa_n, Vec6 &trial) const {
+        const Strength st_n = strength(kappa_n);
+        trial = s0 + hooke(de);
+        const double bound = softening_ ? lode_bound(st_n) : fixed_lode_bound_;
+        const double inv_bound = softening_ ? 1.0 / bound : fixed_inv_lode_bound_;
+        return clearly_elastic(trial, st_n, bound, inv_bound);
     }
 
-    double wave_speed(const talus::sdk::PointIn &in, const talus::sdk::PointOut &) const {
-        return std::sqrt((el_.lambda + 2.0 * el_.shear) / in.density);
-    }
-
-  private:
     // Linear softening weight in [0, 1] and its derivative.
     double weight(double kappa, double &dw) const {
         dw = 0.0;

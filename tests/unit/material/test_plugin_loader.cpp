@@ -460,3 +460,84 @@ TEST(Loader, CheckParameterExplainsBounds) {
     EXPECT_EQ(talus::check_parameter(n, 0.0), "expected 1 <= iterations <= 100 (unit -)");
     EXPECT_EQ(talus::check_parameter(n, NAN), "expected a finite number");
 }
+
+// The SDK's batch loop with a model's optional quick pass and pair update
+// (the fixture's outputs say which path each point took): the quick pass
+// sees each chunk of at most 64 points with the end state already a copy
+// of the start state; the points it leaves go to update_pair two at a time
+// in order, the odd one out of a chunk to update; in place as well as not.
+// A failure inside a pair names the point that failed, not the pair's
+// first.
+TEST(Loader, SdkBatchLoopQuickPassPairsAndTheFailingPoint) {
+    talus::PluginRegistry reg;
+    const talus::Model &m = reg.load(fixture("pairs_sdk").string()).models()[0];
+    const double p[] = {1e6};
+    const auto inst = m.create(p);
+    const std::size_t n = 150; // chunks of 64, 64 and 22
+    std::vector<double> de(6 * n, 0.0), F(9 * n, 0.0), rho(n, 1000.0), c(n, 0.0);
+    std::vector<std::int64_t> ids(n);
+    std::vector<double> tag(n);
+    for (std::size_t k = 0; k < n; ++k) {
+        de[6 * k] = k % 3 == 0 ? 0.0 : 1e-4; // every third point is quick
+        for (int i = 0; i < 3; ++i)
+            F[9 * k + 4 * static_cast<std::size_t>(i)] = 1.0;
+        ids[k] = static_cast<std::int64_t>(k) + 1000;
+        tag[k] = static_cast<double>(k);
+    }
+    auto run = [&](bool in_place, std::vector<double> &s1, std::vector<double> &q1) {
+        std::vector<double> s0(6 * n, 0.0), q0 = tag;
+        s1.assign(6 * n, -1.0);
+        q1.assign(n, -1.0);
+        talus_batch b{};
+        b.flags = TALUS_BATCH_WANT_WAVE_SPEED;
+        b.n_points = n;
+        b.dt = 1.0;
+        b.strain_increment = de.data();
+        b.F_start = F.data();
+        b.F_end = F.data();
+        b.density = rho.data();
+        b.stress_start = in_place ? s1.data() : s0.data();
+        b.state_start = in_place ? q1.data() : q0.data();
+        b.stress_end = s1.data();
+        b.state_end = q1.data();
+        b.wave_speed = c.data();
+        b.point_id = ids.data();
+        if (in_place) {
+            std::fill(s1.begin(), s1.end(), 0.0);
+            q1 = tag;
+        }
+        return inst->update(b);
+    };
+    for (const bool in_place : {false, true}) {
+        SCOPED_TRACE(in_place ? "in place" : "separate arrays");
+        std::vector<double> s1, q1;
+        const auto r = run(in_place, s1, q1);
+        ASSERT_TRUE(r.ok()) << r.message;
+        for (std::size_t c0 = 0; c0 < n; c0 += 64) {
+            // The chunk's points left by the quick pass, in order.
+            std::vector<std::size_t> rest;
+            for (std::size_t k = c0; k < std::min(n, c0 + 64); ++k)
+                if (k % 3 != 0) rest.push_back(k);
+            for (std::size_t j = 0; j < rest.size(); ++j) {
+                const double path = rest.size() % 2 == 1 && j + 1 == rest.size() ? 3.0 : 2.0;
+                EXPECT_EQ(s1[6 * rest[j]], path) << rest[j];
+            }
+        }
+        for (std::size_t k = 0; k < n; ++k) {
+            if (k % 3 == 0) {
+                EXPECT_EQ(s1[6 * k], 1.0) << k;
+            }
+            EXPECT_EQ(s1[6 * k + 1], tag[k]) << k; // the start state, whichever path
+            EXPECT_EQ(q1[k], tag[k] + 100.0) << k;
+            EXPECT_EQ(c[k], 1.0) << k;
+        }
+    }
+    // Point 5 is the second of the first chunk's second pair (the points
+    // left: 1 2, 4 5, 7 8, ...).
+    de[6 * 5 + 1] = 1.0;
+    std::vector<double> s1, q1;
+    const auto r = run(false, s1, q1);
+    EXPECT_EQ(r.status, TALUS_STATUS_FAILED);
+    EXPECT_EQ(r.point, 5);
+    EXPECT_TRUE(contains(r.message, "exception at point 5: point 1005 refuses")) << r.message;
+}

@@ -732,3 +732,141 @@ TEST(MohrCoulomb, InitialStressOutsideTheSurfaceIsReturnedAndReported) {
     EXPECT_EQ(log.size(), 1u);
     talus::set_plugin_log_sink(previous);
 }
+
+// A batch's points are independent: a point's outputs must not depend on
+// its batch or its neighbours, bit for bit (the solver's results do not
+// change with the number of threads or the batch size). The model finishes
+// the clearly elastic points of a batch in a quick pass over its arrays and
+// decomposes the other points' trial stresses two at a time, so a point's
+// path depends on its neighbours; its result must not. Also the quick
+// pass's results against the closed form: Hooke's stress, yield mode 0,
+// the elastic tangent and the P-wave speed.
+TEST(MohrCoulomb, APointsResultDoesNotDependOnItsBatch) {
+    talus::PluginRegistry reg;
+    const double E = 1e7, nu = 0.3;
+    const double G = E / (2.0 * (1.0 + nu)), lambda = E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
+    for (const bool softening : {false, true}) {
+        SCOPED_TRACE(softening ? "softening" : "perfectly plastic");
+        std::map<std::string, double> p = {{"youngs_modulus", E},  {"poisson_ratio", nu},
+                                           {"friction_angle", 30}, {"dilation_angle", 5},
+                                           {"cohesion", 2000},     {"tension_cutoff", 500}};
+        if (softening)
+            p.insert({{"softening", 1},
+                      {"residual_friction_angle", 25},
+                      {"residual_cohesion", 200},
+                      {"softening_end", 0.01}});
+        const auto mi = make(model(reg), p);
+        // 4 kinds of point in turn: deep inside (the quick pass), pulled
+        // into tension, sheared, and anything. 250 points: 3 full chunks
+        // of the quick pass and a partial one, odd numbers of points left
+        // to the full update.
+        const std::size_t n = 250;
+        std::mt19937 gen(5);
+        std::uniform_real_distribution<double> u(-1.0, 1.0);
+        std::vector<double> s0(6 * n), de(6 * n), q0(3 * n), rho(n), F(9 * n, 0.0);
+        std::vector<int> deep(n, 0);
+        for (std::size_t k = 0; k < n; ++k) {
+            double *s = &s0[6 * k], *d = &de[6 * k];
+            const std::size_t kind = k % 4 == 3 ? std::size_t(gen() % 4) : k % 4;
+            for (int i = 0; i < 6; ++i) {
+                s[i] = 1e3 * u(gen);
+                d[i] = 1e-4 * u(gen);
+            }
+            if (kind == 0) { // deep in compression, a small increment
+                deep[k] = 1;
+                for (int i = 0; i < 3; ++i)
+                    s[i] -= 1e5;
+                for (int i = 0; i < 6; ++i)
+                    d[i] *= 1e-2;
+            } else if (kind == 1) { // stretched
+                for (int i = 0; i < 3; ++i)
+                    d[i] = 1e-3 * (1.0 + u(gen));
+            } else if (kind == 2) { // sheared from a confined state
+                for (int i = 0; i < 3; ++i)
+                    s[i] -= 2e4;
+                for (int i = 3; i < 6; ++i)
+                    d[i] = 4e-3 * u(gen);
+            } else { // anything, also a start stress outside the surface
+                for (int i = 0; i < 6; ++i)
+                    s[i] *= 10.0;
+            }
+            q0[3 * k] = softening ? 0.005 * (1.0 + u(gen)) : 0.0;
+            q0[3 * k + 1] = 0.0;
+            q0[3 * k + 2] = double(gen() % 3 == 0 ? 0 : gen() % 2 == 0 ? 1 : 5); // hints
+            rho[k] = 2000.0 + 100.0 * u(gen);
+            for (int i = 0; i < 3; ++i)
+                F[9 * k + 4 * static_cast<std::size_t>(i)] = 1.0;
+        }
+        struct Results {
+            std::vector<double> s, q, c, D;
+        };
+        // Points [0, n) in batches of `size`; in place: the end arrays are
+        // the start arrays.
+        auto run = [&](std::size_t size, bool in_place) {
+            Results r{s0, q0, std::vector<double>(n), std::vector<double>(36 * n)};
+            std::vector<double> s_start = s0, q_start = q0;
+            for (std::size_t b0 = 0; b0 < n; b0 += size) {
+                const std::size_t m = std::min(size, n - b0);
+                talus_batch b{};
+                b.flags = TALUS_BATCH_WANT_WAVE_SPEED | TALUS_BATCH_WANT_TANGENT;
+                b.n_points = m;
+                b.dt = 1.0;
+                b.strain_increment = &de[6 * b0];
+                b.F_start = &F[9 * b0];
+                b.F_end = &F[9 * b0];
+                b.density = &rho[b0];
+                b.stress_start = in_place ? &r.s[6 * b0] : &s_start[6 * b0];
+                b.state_start = in_place ? &r.q[3 * b0] : &q_start[3 * b0];
+                b.stress_end = &r.s[6 * b0];
+                b.state_end = &r.q[3 * b0];
+                b.wave_speed = &r.c[b0];
+                b.tangent = &r.D[36 * b0];
+                const auto res = mi->update(b);
+                EXPECT_TRUE(res.ok()) << res.message;
+            }
+            return r;
+        };
+        const Results whole = run(n, false);
+        int plastic = 0, quick = 0;
+        for (std::size_t k = 0; k < n; ++k)
+            plastic += whole.q[3 * k + 2] != 0.0;
+        // Enough of each path to matter.
+        EXPECT_GT(plastic, 60);
+        for (const auto &[size, in_place] :
+             {std::pair<std::size_t, bool>{1, false}, {7, false}, {64, false}, {n, true}}) {
+            SCOPED_TRACE(testing::Message()
+                         << "batches of " << size << (in_place ? ", in place" : ""));
+            const Results other = run(size, in_place);
+            // Exactly: == on every double (a NaN would fail, as it should).
+            EXPECT_EQ(other.s, whole.s);
+            EXPECT_EQ(other.q, whole.q);
+            EXPECT_EQ(other.c, whole.c);
+            EXPECT_EQ(other.D, whole.D);
+        }
+        // The deep points against the closed form. Hooke's increment is
+        // exact up to the rounding of its few products and sums: 1e-15 of
+        // the stress; the tangent's entries are the moduli themselves.
+        for (std::size_t k = 0; k < n; ++k) {
+            if (!deep[k]) continue;
+            ++quick;
+            const double *d = &de[6 * k];
+            const double tr = d[0] + d[1] + d[2];
+            for (int i = 0; i < 6; ++i) {
+                const double ref =
+                    s0[6 * k + i] + (i < 3 ? lambda * tr + 2.0 * G * d[i] : G * d[i]);
+                EXPECT_NEAR(whole.s[6 * k + i], ref, 1e-15 * 1e5) << k << " " << i;
+            }
+            EXPECT_EQ(whole.q[3 * k], q0[3 * k]);
+            EXPECT_EQ(whole.q[3 * k + 1], q0[3 * k + 1]);
+            EXPECT_EQ(whole.q[3 * k + 2], 0.0);
+            for (int i = 0; i < 6; ++i)
+                for (int j = 0; j < 6; ++j) {
+                    const double ref =
+                        i < 3 && j < 3 ? lambda + (i == j ? 2.0 * G : 0.0) : (i == j ? G : 0.0);
+                    EXPECT_NEAR(whole.D[36 * k + 6 * i + j], ref, 1e-15 * E) << k << " " << i << j;
+                }
+            EXPECT_NEAR(whole.c[k], std::sqrt((lambda + 2.0 * G) / rho[k]), 1e-15 * whole.c[k]);
+        }
+        EXPECT_GT(quick, 60);
+    }
+}

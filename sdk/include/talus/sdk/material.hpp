@@ -17,6 +17,11 @@
 //                         const talus::sdk::PointOut &out) const;
 //       // optional (ABI 1.1): the set-up call before the first step
 //       void init_state(const talus::sdk::PointIn &in, talus::sdk::PointOut &out) const;
+//       // optional, for speed (see Points below): finishes the cheap points
+//       // of a chunk of the batch; update for two points at once
+//       void quick_update(const talus::sdk::Points &p) const;
+//       void update_pair(const talus::sdk::PointIn &a, talus::sdk::PointOut &oa,
+//                        const talus::sdk::PointIn &b, talus::sdk::PointOut &ob) const;
 //   };
 //   TALUS_MATERIAL_LIBRARY("my_library", "1.0.0", MyModel)
 //
@@ -33,7 +38,9 @@
 
 #include <Eigen/Core>
 
+#include <algorithm>
 #include <array>
+#include <concepts>
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
@@ -313,6 +320,36 @@ struct PointOut {
     Mat6 *tangent = nullptr;
 };
 
+// A chunk of a batch, for a model's optional quick pass (see the head of
+// this file), which finishes the points it can finish cheaply (a model's
+// common case: an elastic step) in a loop over the chunk's arrays, without
+// the per-point set-up of update(); the others go to update(), or in pairs
+// to update_pair(). Each point's result must be what update() gives it,
+// whatever its neighbours. Arrays of n points, point after point (6 strain or stress
+// components, the model's state values, 36 tangent entries row-major).
+// state_end holds a copy of the start state on entry. A point the pass
+// finishes gets its whole result: stress_end, the state values that change,
+// wave_speed[k] when wave_speed is not null, the tangent when tangent is
+// not null, and done[k] = 1. A point it leaves keeps done[k] = 0 and its
+// stress_end and state_end untouched (they may be the start arrays); its
+// wave_speed and tangent entries may be written, update() overwrites them.
+// The pass must not throw (a failure would name the chunk's first point):
+// a point it cannot finish is left to update().
+struct Points {
+    static constexpr std::size_t kMaxSize = 64;
+    std::size_t n = 0;
+    double time = 0.0, dt = 0.0;
+    const double *strain_increment = nullptr;
+    const double *stress_start = nullptr;
+    const double *state_start = nullptr;
+    const double *density = nullptr;
+    double *stress_end = nullptr;
+    double *state_end = nullptr;
+    double *wave_speed = nullptr;
+    double *tangent = nullptr;
+    std::uint8_t *done = nullptr;
+};
+
 // ------------------------------------------------------------ internals --
 namespace detail {
 struct HostLog;
@@ -440,6 +477,59 @@ struct Descriptors {
     static constexpr bool has_init_state = requires(const M &m, const PointIn &in, PointOut &out) {
         m.init_state(in, out);
     };
+    static constexpr bool has_quick_update = requires(const M &m, const Points &p) {
+        m.quick_update(p);
+    };
+    static constexpr bool has_pair_update = requires(const M &m, const PointIn &in, PointOut &out) {
+        m.update_pair(in, out, in, out);
+    };
+    // What the batch gives every point, read once per batch.
+    struct Context {
+        const talus_batch *b = nullptr;
+        bool v11 = false, want_t = false;
+        const std::int64_t *ids = nullptr;
+        const double *lengths = nullptr, *rotations = nullptr;
+    };
+    // Point k's inputs and outputs made ready for the model, with room for
+    // its start state's copy and its tangent. Not copyable: `in` may point
+    // into it.
+    struct Slot {
+        PointIn in;
+        PointOut out;
+        std::array<double, state_size == 0 ? 1 : state_size> state_copy;
+        Mat6 tangent;
+
+        Slot(const Context &x, std::size_t k)
+            : in(x.b->strain_increment + 6 * k, x.b->F_start + 9 * k, x.b->F_end + 9 * k,
+                 x.b->stress_start + 6 * k) {
+            const talus_batch *b = x.b;
+            in.time = b->time;
+            in.dt = b->dt;
+            in.density = b->density[k];
+            if (x.v11) in.step = b->step;
+            if (x.ids) in.point_id = x.ids[k];
+            if (x.lengths) in.characteristic_length = x.lengths[k];
+            if (x.rotations) in.rotation = x.rotations + 9 * k;
+            const double *q0 = state_size ? b->state_start + state_size * k : nullptr;
+            double *q1 = state_size ? b->state_end + state_size * k : nullptr;
+            // With an in-place update the start state is copied aside
+            // before the model may overwrite it.
+            if (q1 == q0 && state_size > 0) {
+                for (std::uint32_t j = 0; j < state_size; ++j)
+                    state_copy[j] = q0[j];
+                in.state = std::span<const double>(state_copy.data(), state_size);
+            } else {
+                in.state = std::span<const double>(q0, state_size);
+            }
+            if (q1 != q0)
+                for (std::uint32_t j = 0; j < state_size; ++j)
+                    q1[j] = q0[j];
+            out.state = std::span<double>(q1, state_size);
+            out.tangent = x.want_t ? &tangent : nullptr;
+        }
+        Slot(const Slot &) = delete;
+        Slot &operator=(const Slot &) = delete;
+    };
 
     static std::int32_t construct(std::span<const ParamValue> values, std::string_view material,
                                   std::string_view base_dir, talus_instance **out,
@@ -566,76 +656,109 @@ struct Descriptors {
                                 "(or not positive), or F for a finite-strain model) at point " +
                                     std::to_string(k));
         using RowMat6 = Eigen::Matrix<double, 6, 6, Eigen::RowMajor>;
-        Mat6 tangent;
+        // Point k's outputs into the batch.
+        auto commit = [&](const Slot &slot, std::size_t k) {
+            // The outputs are not screened here: the host screens every
+            // plugin's outputs after the batch (NaN, infinities and
+            // non-positive wave speeds), whether built with this SDK or
+            // not, so one screen serves both.
+            double c = 0.0;
+            if (want_c) c = self.wave_speed(slot.in, slot.out);
+            // Element by element: the model has just written out.stress,
+            // in stores whose widths and overlaps its compiler chose (GCC
+            // wrote linear_elastic's as the pairs 0-1 and 1-2, then 3). A
+            // 16-byte load needing two of them waits until they reach the
+            // cache (no store forwarding): 45 % of linear_elastic's batch
+            // loop sat on one such load. An 8-byte load forwards from any
+            // store holding it; the empty asm (GCC and clang) keeps the
+            // compiler from pairing the loads.
+            for (std::size_t e = 0; e < 6; ++e) {
+                b->stress_end[6 * k + e] = slot.out.stress[static_cast<Eigen::Index>(e)];
+#if defined(__GNUC__) || defined(__clang__)
+                asm volatile("" ::: "memory");
+#endif
+            }
+            if (want_c) b->wave_speed[k] = c;
+            if (want_t) Eigen::Map<RowMat6>(b->tangent + 36 * k) = slot.tangent;
+        };
+        const Context ctx{b, v11, want_t, ids, lengths, rotations};
         std::int64_t i = 0;
         try {
+            if constexpr (has_quick_update || has_pair_update) {
+                if (!setup) {
+                    // Per chunk: the model's quick pass over the chunk's
+                    // arrays, then update() on the points it left, two at
+                    // a time where the model takes pairs.
+                    std::array<std::uint8_t, Points::kMaxSize> done;
+                    std::array<std::uint32_t, Points::kMaxSize> rest;
+                    for (std::size_t c0 = 0; c0 < n; c0 += Points::kMaxSize) {
+                        const std::size_t m = std::min(n - c0, Points::kMaxSize);
+                        i = static_cast<std::int64_t>(c0);
+                        // The end state starts as the start state.
+                        if (state_size > 0 && b->state_end != b->state_start)
+                            std::copy(b->state_start + state_size * c0,
+                                      b->state_start + state_size * (c0 + m),
+                                      b->state_end + state_size * c0);
+                        std::fill(done.begin(), done.begin() + m, std::uint8_t{0});
+                        const Points pts{m,
+                                         b->time,
+                                         b->dt,
+                                         b->strain_increment + 6 * c0,
+                                         b->stress_start + 6 * c0,
+                                         state_size ? b->state_start + state_size * c0 : nullptr,
+                                         b->density + c0,
+                                         b->stress_end + 6 * c0,
+                                         state_size ? b->state_end + state_size * c0 : nullptr,
+                                         want_c ? b->wave_speed + c0 : nullptr,
+                                         want_t ? b->tangent + 36 * c0 : nullptr,
+                                         done.data()};
+                        if constexpr (has_quick_update) self.quick_update(pts);
+                        std::size_t n_rest = 0;
+                        for (std::size_t k = 0; k < m; ++k)
+                            if (!done[k]) rest[n_rest++] = static_cast<std::uint32_t>(c0 + k);
+                        std::size_t j = 0;
+                        if constexpr (has_pair_update)
+                            for (; j + 1 < n_rest; j += 2) {
+                                i = rest[j];
+                                Slot slot(ctx, rest[j]), other(ctx, rest[j + 1]);
+                                try {
+                                    self.update_pair(slot.in, slot.out, other.in, other.out);
+                                } catch (...) {
+                                    // The failure is reported with the
+                                    // point it belongs to: each alone (the
+                                    // slots keep their inputs).
+                                    self.update(slot.in, slot.out);
+                                    i = rest[j + 1];
+                                    self.update(other.in, other.out);
+                                    throw;
+                                }
+                                commit(slot, rest[j]);
+                                commit(other, rest[j + 1]);
+                            }
+                        for (; j < n_rest; ++j) {
+                            i = rest[j];
+                            Slot slot(ctx, rest[j]);
+                            self.update(slot.in, slot.out);
+                            commit(slot, rest[j]);
+                        }
+                    }
+                    return TALUS_STATUS_OK;
+                }
+            }
             for (; i < static_cast<std::int64_t>(n); ++i) {
                 const std::size_t k = static_cast<std::size_t>(i);
-                const double *de = b->strain_increment + 6 * k;
-                const double *s0 = b->stress_start + 6 * k;
-                const double *q0 = state_size ? b->state_start + state_size * k : nullptr;
-                double *q1 = state_size ? b->state_end + state_size * k : nullptr;
-
-                PointIn in(de, b->F_start + 9 * k, b->F_end + 9 * k, s0);
-                in.time = b->time;
-                in.dt = b->dt;
-                in.density = b->density[k];
-                if (v11) in.step = b->step;
-                if (ids) in.point_id = ids[k];
-                if (lengths) in.characteristic_length = lengths[k];
-                if (rotations) in.rotation = rotations + 9 * k;
-                // With an in-place update the start state is copied aside
-                // before the model may overwrite it.
-                // (sized by the model's own state, known at compile time)
-                std::array<double, state_size == 0 ? 1 : state_size> state_copy;
-                if (q1 == q0 && state_size > 0) {
-                    for (std::uint32_t j = 0; j < state_size; ++j)
-                        state_copy[j] = q0[j];
-                    in.state = std::span<const double>(state_copy.data(), state_size);
-                } else {
-                    in.state = std::span<const double>(q0, state_size);
-                }
-
-                PointOut out;
-                if (q1 != q0)
-                    for (std::uint32_t j = 0; j < state_size; ++j)
-                        q1[j] = q0[j];
-                out.state = std::span<double>(q1, state_size);
-                out.tangent = want_t ? &tangent : nullptr;
+                Slot slot(ctx, k);
                 // From here on the start state may already be overwritten
                 // (aliasing), so `in` holds the only copy of the inputs.
                 if constexpr (has_init_state) {
                     if (setup)
-                        self.init_state(in, out);
+                        self.init_state(slot.in, slot.out);
                     else
-                        self.update(in, out);
+                        self.update(slot.in, slot.out);
                 } else {
-                    self.update(in, out);
+                    self.update(slot.in, slot.out);
                 }
-
-                // The outputs are not screened here: the host screens every
-                // plugin's outputs after the batch (NaN, infinities and
-                // non-positive wave speeds), whether built with this SDK or
-                // not, so one screen serves both.
-                double c = 0.0;
-                if (want_c) c = self.wave_speed(in, out);
-                // Element by element: the model has just written
-                // out.stress, in stores whose widths and overlaps its
-                // compiler chose (GCC wrote linear_elastic's as the pairs
-                // 0-1 and 1-2, then 3). A 16-byte load needing two of them
-                // waits until they reach the cache (no store forwarding):
-                // 45 % of linear_elastic's batch loop sat on one such load.
-                // An 8-byte load forwards from any store holding it; the
-                // empty asm (GCC and clang) keeps the compiler from pairing
-                // the loads.
-                for (std::size_t e = 0; e < 6; ++e) {
-                    b->stress_end[6 * k + e] = out.stress[static_cast<Eigen::Index>(e)];
-#if defined(__GNUC__) || defined(__clang__)
-                    asm volatile("" ::: "memory");
-#endif
-                }
-                if (want_c) b->wave_speed[k] = c;
-                if (want_t) Eigen::Map<RowMat6>(b->tangent + 36 * k) = tangent;
+                commit(slot, k);
             }
         } catch (const CutStep &e) {
             if (err && err->struct_size >= offsetof(talus_error, message)) {
