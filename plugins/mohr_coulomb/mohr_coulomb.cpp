@@ -227,10 +227,10 @@ struct MohrCoulomb {
             Vec6 trial;
             if (!elastic_trial(Eigen::Map<const Vec6>(p.stress_start + 6 * k),
                                Eigen::Map<const Vec6>(p.strain_increment + 6 * k),
-                               p.state_start[3 * k], trial))
+                               p.state_start[state.size() * k], trial))
                 continue;
             Eigen::Map<Vec6>(p.stress_end + 6 * k) = trial;
-            p.state_end[3 * k + 2] = talus_mc::kElastic;
+            p.state_end[state.size() * k + 2] = talus_mc::kElastic;
             if (p.tangent) Eigen::Map<Mat6>(p.tangent + 36 * k) = De_; // symmetric
             p.done[k] = 1;
         }
@@ -238,7 +238,7 @@ struct MohrCoulomb {
         // ones it takes): a loop the compiler vectorises.
         if (p.wave_speed)
             for (std::size_t k = 0; k < p.n; ++k)
-                p.wave_speed[k] = std::sqrt((el_.lambda + 2.0 * el_.shear) / p.density[k]);
+                p.wave_speed[k] = p_wave_speed(p.density[k]);
     }
 
     // update() for two points, their decompositions side by side.
@@ -283,10 +283,14 @@ struct MohrCoulomb {
     }
 
     double wave_speed(const talus::sdk::PointIn &in, const talus::sdk::PointOut &) const {
-        return std::sqrt((el_.lambda + 2.0 * el_.shear) / in.density);
+        return p_wave_speed(in.density);
     }
 
   private:
+    double p_wave_speed(double density) const {
+        return std::sqrt((el_.lambda + 2.0 * el_.shear) / density);
+    }
+
     // The update from the decomposition of the trial stress on.
     void finish(const talus::sdk::PointIn &in, talus::sdk::PointOut &out, Vec6 trial,
                 Spectral sp) const {

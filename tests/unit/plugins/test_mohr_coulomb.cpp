@@ -865,6 +865,8 @@ TEST(MohrCoulomb, APointsResultDoesNotDependOnItsBatch) {
                         i < 3 && j < 3 ? lambda + (i == j ? 2.0 * G : 0.0) : (i == j ? G : 0.0);
                     EXPECT_NEAR(whole.D[36 * k + 6 * i + j], ref, 1e-15 * E) << k << " " << i << j;
                 }
+            // A division and a square root, each correctly rounded, of
+            // moduli computed as the model does: a few ulps (2.2e-16 each).
             EXPECT_NEAR(whole.c[k], std::sqrt((lambda + 2.0 * G) / rho[k]), 1e-15 * whole.c[k]);
         }
         EXPECT_GT(quick, 60);

@@ -178,11 +178,34 @@ TEST(SymmetricEigen, PairLanesAreTheSingleDecompositionBitForBit) {
         }
     // And the pair's lanes are decompositions (the single one's accuracy
     // is tested above; this catches a pair that gives both lanes one
-    // matrix's result).
+    // matrix's result). kTol is relative to the largest entry, here 1e4.
     talus::sdk::SymmetricEigen a, b;
     talus::sdk::symmetric_eigen_pair(m[3], m[4], a, b);
     EXPECT_LE((a.compose(a.values) - m[3]).cwiseAbs().maxCoeff(), kTol * 1e4);
     EXPECT_LE((b.compose(b.values) - m[4]).cwiseAbs().maxCoeff(), kTol * 1e4);
+}
+
+// Compilers without vector extensions run the same source over doubles:
+// that instance must give the lane pair's bits (both are IEEE operations
+// in one order; the tests are built without fused multiply-adds).
+TEST(SymmetricEigen, TheScalarInstanceGivesTheLanePairsBits) {
+    std::mt19937 gen(13);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    for (int k = 0; k < 500; ++k) {
+        Mat3 a;
+        for (int i = 0; i < 3; ++i)
+            for (int j = i; j < 3; ++j)
+                a(i, j) = a(j, i) = (k % 50 == 0 ? 1e70 : 1e3) * u(gen);
+        const talus::sdk::detail::Unordered<double> s = talus::sdk::detail::unordered_eigen<double>(
+            a(0, 0), a(1, 1), a(2, 2), a(0, 1), a(0, 2), a(1, 2));
+        talus::sdk::SymmetricEigen scalar;
+        talus::sdk::detail::order_lane(s.q, s.scale, s.l, s.vec, false, scalar);
+        const talus::sdk::SymmetricEigen pair = talus::sdk::symmetric_eigen(a);
+        EXPECT_EQ(0, std::memcmp(scalar.values.data(), pair.values.data(), sizeof(double) * 3))
+            << k;
+        EXPECT_EQ(0, std::memcmp(scalar.vectors.data(), pair.vectors.data(), sizeof(double) * 9))
+            << k;
+    }
 }
 
 TEST(SymmetricEigen, CubicRootIsSmithsFormula) {

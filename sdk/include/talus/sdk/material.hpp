@@ -18,7 +18,7 @@
 //       // optional (ABI 1.1): the set-up call before the first step
 //       void init_state(const talus::sdk::PointIn &in, talus::sdk::PointOut &out) const;
 //       // optional, for speed (see Points below): finishes the cheap points
-//       // of a chunk of the batch; update for two points at once
+//       // of a chunk of the batch; update for two of the points it leaves
 //       void quick_update(const talus::sdk::Points &p) const;
 //       void update_pair(const talus::sdk::PointIn &a, talus::sdk::PointOut &oa,
 //                        const talus::sdk::PointIn &b, talus::sdk::PointOut &ob) const;
@@ -40,7 +40,6 @@
 
 #include <algorithm>
 #include <array>
-#include <concepts>
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
@@ -684,7 +683,7 @@ struct Descriptors {
         const Context ctx{b, v11, want_t, ids, lengths, rotations};
         std::int64_t i = 0;
         try {
-            if constexpr (has_quick_update || has_pair_update) {
+            if constexpr (has_quick_update) {
                 if (!setup) {
                     // Per chunk: the model's quick pass over the chunk's
                     // arrays, then update() on the points it left, two at
@@ -712,7 +711,7 @@ struct Descriptors {
                                          want_c ? b->wave_speed + c0 : nullptr,
                                          want_t ? b->tangent + 36 * c0 : nullptr,
                                          done.data()};
-                        if constexpr (has_quick_update) self.quick_update(pts);
+                        self.quick_update(pts);
                         std::size_t n_rest = 0;
                         for (std::size_t k = 0; k < m; ++k)
                             if (!done[k]) rest[n_rest++] = static_cast<std::uint32_t>(c0 + k);
