@@ -29,6 +29,7 @@
 #include <talus/sdk/material.hpp>
 #include <talus/sdk/spectral.hpp>
 #include <talus/sdk/voigt.hpp>
+#include <talus/sdk/wave_speed.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -235,10 +236,8 @@ struct MohrCoulomb {
             p.done[k] = 1;
         }
         // Every point's, as wave_speed() gives it (update() overwrites the
-        // ones it takes): a loop the compiler vectorises.
-        if (p.wave_speed)
-            for (std::size_t k = 0; k < p.n; ++k)
-                p.wave_speed[k] = p_wave_speed(p.density[k]);
+        // ones it takes), two points at a time.
+        if (p.wave_speed) talus::sdk::wave_speeds(p_wave_modulus(), p.density, p.wave_speed, p.n);
     }
 
     // update() for two points, their decompositions side by side.
@@ -287,9 +286,9 @@ struct MohrCoulomb {
     }
 
   private:
-    double p_wave_speed(double density) const {
-        return std::sqrt((el_.lambda + 2.0 * el_.shear) / density);
-    }
+    // K + 4G/3 = lambda + 2G: the P-wave (constrained) modulus.
+    double p_wave_modulus() const { return el_.lambda + 2.0 * el_.shear; }
+    double p_wave_speed(double density) const { return std::sqrt(p_wave_modulus() / density); }
 
     // The update from the decomposition of the trial stress on.
     void finish(const talus::sdk::PointIn &in, talus::sdk::PointOut &out, Vec6 trial,
