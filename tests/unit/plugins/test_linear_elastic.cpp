@@ -95,11 +95,8 @@ TEST(LinearElastic, HookesLawWithTheSameBitsInEveryBatching) {
     // Every batching, and in place, gives the same bits (== on every
     // double; a NaN would fail, as it should). Batches of 1 and 7 leave the
     // wave speeds' pairs an odd point; 64 is the SDK's chunk.
-    for (const auto &[size, in_place] : {std::pair<std::size_t, bool>{1, false},
-                                         {7, false},
-                                         {64, false},
-                                         {n, true},
-                                         {7, true}}) {
+    for (const auto &[size, in_place] :
+         {std::pair<std::size_t, bool>{1, false}, {7, false}, {64, false}, {n, true}, {7, true}}) {
         SCOPED_TRACE(testing::Message() << "batches of " << size << (in_place ? ", in place" : ""));
         const Results other = run(size, in_place);
         EXPECT_EQ(other.s, whole.s);
