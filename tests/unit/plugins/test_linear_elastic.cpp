@@ -4,6 +4,7 @@
 // no init_state, so the host's start is its update); a point's bits must
 // not depend on the chunk it falls in or on an in-place update, or a run's
 // result would depend on how its particles were grouped.
+#include "batches.hpp"
 #include "test_paths.hpp"
 
 #include <talus/material/plugin_loader.hpp>
@@ -16,10 +17,6 @@
 #include <vector>
 
 namespace {
-
-struct Results {
-    std::vector<double> s, c, D;
-};
 
 TEST(LinearElastic, HookesLawWithTheSameBitsInEveryBatching) {
     talus::PluginRegistry reg;
@@ -45,31 +42,11 @@ TEST(LinearElastic, HookesLawWithTheSameBitsInEveryBatching) {
         for (std::size_t i = 0; i < 3; ++i)
             F[9 * k + 4 * i] = 1.0;
     }
-    // Points [0, n) in batches of `size`; in place: the end stress is the
-    // start stress.
+    const talus::test::PointsIn points{n, 0, s0, {}, de, rho, F};
     auto run = [&](std::size_t size, bool in_place) {
-        Results r{s0, std::vector<double>(n), std::vector<double>(36 * n)};
-        for (std::size_t b0 = 0; b0 < n; b0 += size) {
-            const std::size_t m = std::min(size, n - b0);
-            talus_batch b{};
-            b.flags = TALUS_BATCH_WANT_WAVE_SPEED | TALUS_BATCH_WANT_TANGENT;
-            b.n_points = m;
-            b.dt = 1.0;
-            b.step = 1;
-            b.strain_increment = &de[6 * b0];
-            b.F_start = &F[9 * b0];
-            b.F_end = &F[9 * b0];
-            b.density = &rho[b0];
-            b.stress_start = in_place ? &r.s[6 * b0] : &s0[6 * b0];
-            b.stress_end = &r.s[6 * b0];
-            b.wave_speed = &r.c[b0];
-            b.tangent = &r.D[36 * b0];
-            const auto res = mi->update(b);
-            EXPECT_TRUE(res.ok()) << res.message;
-        }
-        return r;
+        return talus::test::update_in_batches(*mi, points, size, in_place);
     };
-    const Results whole = run(n, false);
+    const talus::test::PointsOut whole = run(n, false);
     // Hooke's law: sigma + lambda tr(de) I + 2 G de (tensor shear: G times
     // the engineering shear strain). The plugin's moduli and the reference's
     // are computed the same way; the update's few products and sums round
@@ -98,7 +75,7 @@ TEST(LinearElastic, HookesLawWithTheSameBitsInEveryBatching) {
     for (const auto &[size, in_place] :
          {std::pair<std::size_t, bool>{1, false}, {7, false}, {64, false}, {n, true}, {7, true}}) {
         SCOPED_TRACE(testing::Message() << "batches of " << size << (in_place ? ", in place" : ""));
-        const Results other = run(size, in_place);
+        const talus::test::PointsOut other = run(size, in_place);
         EXPECT_EQ(other.s, whole.s);
         EXPECT_EQ(other.c, whole.c);
         EXPECT_EQ(other.D, whole.D);

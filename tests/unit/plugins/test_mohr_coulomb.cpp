@@ -3,6 +3,7 @@
 // space among the return candidates, the consistent tangent at each kind of
 // return, implicit softening, the parameter bounds and the treatment of a
 // start stress outside the surface.
+#include "batches.hpp"
 #include "test_paths.hpp"
 
 #include "mohr_coulomb/principal_return.hpp"
@@ -797,36 +798,11 @@ TEST(MohrCoulomb, APointsResultDoesNotDependOnItsBatch) {
             for (int i = 0; i < 3; ++i)
                 F[9 * k + 4 * static_cast<std::size_t>(i)] = 1.0;
         }
-        struct Results {
-            std::vector<double> s, q, c, D;
-        };
-        // Points [0, n) in batches of `size`; in place: the end arrays are
-        // the start arrays.
+        const talus::test::PointsIn points{n, 3, s0, q0, de, rho, F};
         auto run = [&](std::size_t size, bool in_place) {
-            Results r{s0, q0, std::vector<double>(n), std::vector<double>(36 * n)};
-            std::vector<double> s_start = s0, q_start = q0;
-            for (std::size_t b0 = 0; b0 < n; b0 += size) {
-                const std::size_t m = std::min(size, n - b0);
-                talus_batch b{};
-                b.flags = TALUS_BATCH_WANT_WAVE_SPEED | TALUS_BATCH_WANT_TANGENT;
-                b.n_points = m;
-                b.dt = 1.0;
-                b.strain_increment = &de[6 * b0];
-                b.F_start = &F[9 * b0];
-                b.F_end = &F[9 * b0];
-                b.density = &rho[b0];
-                b.stress_start = in_place ? &r.s[6 * b0] : &s_start[6 * b0];
-                b.state_start = in_place ? &r.q[3 * b0] : &q_start[3 * b0];
-                b.stress_end = &r.s[6 * b0];
-                b.state_end = &r.q[3 * b0];
-                b.wave_speed = &r.c[b0];
-                b.tangent = &r.D[36 * b0];
-                const auto res = mi->update(b);
-                EXPECT_TRUE(res.ok()) << res.message;
-            }
-            return r;
+            return talus::test::update_in_batches(*mi, points, size, in_place);
         };
-        const Results whole = run(n, false);
+        const talus::test::PointsOut whole = run(n, false);
         int plastic = 0, quick = 0;
         for (std::size_t k = 0; k < n; ++k)
             plastic += whole.q[3 * k + 2] != 0.0;
@@ -836,7 +812,7 @@ TEST(MohrCoulomb, APointsResultDoesNotDependOnItsBatch) {
              {std::pair<std::size_t, bool>{1, false}, {7, false}, {64, false}, {n, true}}) {
             SCOPED_TRACE(testing::Message()
                          << "batches of " << size << (in_place ? ", in place" : ""));
-            const Results other = run(size, in_place);
+            const talus::test::PointsOut other = run(size, in_place);
             // Exactly: == on every double (a NaN would fail, as it should).
             EXPECT_EQ(other.s, whole.s);
             EXPECT_EQ(other.q, whole.q);
