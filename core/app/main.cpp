@@ -384,12 +384,19 @@ int main(int argc, char **argv) {
             ro.solver.threads = threads;
             if (!run_plot.empty()) {
                 // A picture that cannot be written is found out now, not
-                // after the run.
-                const std::filesystem::path folder =
-                    std::filesystem::absolute(run_plot).parent_path();
-                if (!std::filesystem::is_directory(folder))
-                    throw talus::Error(fmt::format("--plot {}: the folder {} does not exist",
-                                                   run_plot, folder.string()));
+                // after the run. Its folder must exist, or be the run's
+                // output folder, which the run makes (as the default job,
+                // ./dev run, draws into it on a fresh build).
+                namespace fs = std::filesystem;
+                const fs::path folder = fs::weakly_canonical(fs::absolute(run_plot).parent_path());
+                const fs::path run_dir = fs::weakly_canonical(
+                    fs::absolute(output_dir.empty() ? talus::default_output_dir(sc.file)
+                                                    : fs::path(output_dir)));
+                if (!fs::is_directory(folder) && folder != run_dir)
+                    throw talus::Error(fmt::format(
+                        "--plot {}: the folder {} does not exist (nor is it the run's output "
+                        "folder, {}, which the run makes)",
+                        run_plot, folder.string(), run_dir.string()));
                 ro.final_field = run_plot_field;
             }
             std::ostream silent(nullptr); // the other ranks' log: rank 0 tells it
