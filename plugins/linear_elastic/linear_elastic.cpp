@@ -71,7 +71,7 @@ struct LinearElastic {
     // The whole update over a chunk of the batch (the SDK's quick pass),
     // so every update call takes this path: update() and wave_speed() are
     // the per-point forms the SDK's contract asks for, with the same
-    // arithmetic (hooke(), p_wave_speed()). Without it the SDK set up each
+    // arithmetic (hooke(), sqrt(M / rho)). Without it the SDK set up each
     // point for update() and computed its wave speed alone, where the
     // division and the square root wait on each other: 10 % of a 2D step
     // on a core with slow ones (docs/performance.md).
@@ -85,7 +85,7 @@ struct LinearElastic {
     }
 
     double wave_speed(const talus::sdk::PointIn &in, const talus::sdk::PointOut &) const {
-        return p_wave_speed(in.density);
+        return std::sqrt(p_wave_modulus_ / in.density);
     }
 
   private:
@@ -99,8 +99,6 @@ struct LinearElastic {
             s1[i + 3] = s0[i + 3] + shear_ * de[i + 3];
         }
     }
-
-    double p_wave_speed(double density) const { return std::sqrt(p_wave_modulus_ / density); }
 
     double shear_ = 0.0;
     double lambda_ = 0.0;

@@ -282,13 +282,12 @@ struct MohrCoulomb {
     }
 
     double wave_speed(const talus::sdk::PointIn &in, const talus::sdk::PointOut &) const {
-        return p_wave_speed(in.density);
+        return std::sqrt(p_wave_modulus() / in.density);
     }
 
   private:
     // K + 4G/3 = lambda + 2G: the P-wave (constrained) modulus.
     double p_wave_modulus() const { return el_.lambda + 2.0 * el_.shear; }
-    double p_wave_speed(double density) const { return std::sqrt(p_wave_modulus() / density); }
 
     // The update from the decomposition of the trial stress on.
     void finish(const talus::sdk::PointIn &in, talus::sdk::PointOut &out, Vec6 trial,
