@@ -18,8 +18,11 @@ const char *isa_name(Isa isa);
 } // namespace talus
 
 // The function attributes of the kernel versions; empty where the compiler
-// or the target has no such versions (then every Isa runs the generic one).
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+// or the target has no such versions, or the build leaves them out
+// (TALUS_KERNEL_ISA_VERSIONS=OFF): then every Isa runs the generic one, and
+// kernel_isa() offers no other.
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) &&                            \
+    !defined(TALUS_NO_ISA_VERSIONS)
 #define TALUS_HAS_ISA_VERSIONS 1
 #define TALUS_TARGET_AVX2 __attribute__((target("avx2,fma")))
 #define TALUS_TARGET_AVX512 __attribute__((target("avx512f,avx2,fma")))
