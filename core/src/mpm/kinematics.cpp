@@ -170,6 +170,7 @@ std::size_t block_generic(ParticleSet &s, std::size_t begin, std::size_t count, 
                           std::size_t L_stride, double dt, const BlockIncrement &out) {
     return block_of<2>(s, begin, count, L, L_stride, dt, out);
 }
+#if TALUS_HAS_ISA_VERSIONS
 TALUS_TARGET_AVX2 std::size_t block_avx2(ParticleSet &s, std::size_t begin, std::size_t count,
                                          const double *L, std::size_t L_stride, double dt,
                                          const BlockIncrement &out) {
@@ -180,15 +181,18 @@ TALUS_TARGET_AVX512 std::size_t block_avx512(ParticleSet &s, std::size_t begin, 
                                              const BlockIncrement &out) {
     return block_of<8>(s, begin, count, L, L_stride, dt, out);
 }
+#endif
 
 } // namespace
 
 std::size_t kinematics_block(ParticleSet &s, std::size_t begin, std::size_t count, const double *L,
                              std::size_t L_stride, double dt, const BlockIncrement &out, Isa isa) {
-    if constexpr (TALUS_HAS_ISA_VERSIONS) {
-        if (isa == Isa::avx512) return block_avx512(s, begin, count, L, L_stride, dt, out);
-        if (isa == Isa::avx2) return block_avx2(s, begin, count, L, L_stride, dt, out);
-    }
+#if TALUS_HAS_ISA_VERSIONS
+    if (isa == Isa::avx512) return block_avx512(s, begin, count, L, L_stride, dt, out);
+    if (isa == Isa::avx2) return block_avx2(s, begin, count, L, L_stride, dt, out);
+#else
+    (void)isa; // every instruction set runs the generic version
+#endif
     return block_generic(s, begin, count, L, L_stride, dt, out);
 }
 
