@@ -67,7 +67,7 @@ template <int D, bool Rotate>
     s.J[p] = J;
     if (!(J > 0.0)) [[unlikely]]
         return false;
-    std::memcpy(out.F_end + 9 * k, F1, sizeof F1);
+    std::memcpy(&s.F[9 * p], F1, sizeof F1);
     out.rho[k] = s.rho0 / J;
     double *de = out.de + 6 * k;
     de[0] = dt * L[0];
@@ -102,10 +102,12 @@ block_packs(ParticleSet &s, std::size_t begin, std::size_t count, const double *
         const std::size_t p = begin + k;
         const double *Lk = L + L_stride * k;
         V Lv[9], F0[9], F1[9];
-        for (int c = 0; c < 9; ++c) {
-            load_lanes<N>(Lk + c, L_stride, Lv[c]);
-            load_lanes<N>(&s.F[9 * p + static_cast<std::size_t>(c)], 9, F0[c]);
-        }
+        if (L_stride == 9)
+            load_points<N>(Lk, Lv);
+        else
+            for (int c = 0; c < 9; ++c)
+                load_lanes<N>(Lk + c, L_stride, Lv[c]);
+        load_points<N>(&s.F[9 * p], F0);
         V J;
         deformation<D>(F0, Lv, dt, F1, J);
         // An inverted point (J <= 0 or NaN), or (plane strain, rotated
@@ -118,8 +120,7 @@ block_packs(ParticleSet &s, std::size_t begin, std::size_t count, const double *
                 odd += Lv[c] == zero ? zero : one;
         const bool one_by_one = any_lane<N>(odd);
         V sig[6];
-        for (int c = 0; c < 6; ++c)
-            load_lanes<N>(&s.stress[6 * p + static_cast<std::size_t>(c)], 6, sig[c]);
+        load_points<N>(&s.stress[6 * p], sig);
         if constexpr (Rotate)
             if (!one_by_one) hughes_winget_lanes<D == 3>(Lv, dt, sig);
         if (one_by_one) [[unlikely]] {
@@ -130,12 +131,10 @@ block_packs(ParticleSet &s, std::size_t begin, std::size_t count, const double *
         std::memcpy(&s.J[p], &J, sizeof J);
         const V rho = rho0 / J;
         std::memcpy(out.rho + k, &rho, sizeof rho);
-        for (int c = 0; c < 9; ++c)
-            store_lanes<N>(out.F_end + 9 * k + static_cast<std::size_t>(c), 9, F1[c]);
+        store_points<N>(&s.F[9 * p], F1); // over F0, kept in out.F_start
         const V de[6] = {dt * Lv[0],           dt * Lv[4],           dt * Lv[8],
                          dt * (Lv[1] + Lv[3]), dt * (Lv[5] + Lv[7]), dt * (Lv[2] + Lv[6])};
-        for (int c = 0; c < 6; ++c)
-            store_lanes<N>(out.de + 6 * k + static_cast<std::size_t>(c), 6, de[c]);
+        store_points<N>(out.de + 6 * k, de);
         // stress_work's sum in its order, lane by lane.
         const V w = sig[0] * de[0] + sig[1] * de[1] + sig[2] * de[2] + sig[3] * de[3] +
                     sig[4] * de[4] + sig[5] * de[5];
@@ -144,9 +143,7 @@ block_packs(ParticleSet &s, std::size_t begin, std::size_t count, const double *
             const V dv = Lv[0] + Lv[4] + Lv[8];
             std::memcpy(divv + k, &dv, sizeof dv);
         }
-        if constexpr (Rotate)
-            for (int c = 0; c < 6; ++c)
-                store_lanes<N>(&s.stress[6 * p + static_cast<std::size_t>(c)], 6, sig[c]);
+        if constexpr (Rotate) store_points<N>(&s.stress[6 * p], sig);
     }
     return by_point(k, count);
 }
@@ -187,6 +184,8 @@ TALUS_TARGET_AVX512 std::size_t block_avx512(ParticleSet &s, std::size_t begin, 
 
 std::size_t kinematics_block(ParticleSet &s, std::size_t begin, std::size_t count, const double *L,
                              std::size_t L_stride, double dt, const BlockIncrement &out, Isa isa) {
+    // The start F aside in one contiguous copy, then F1 over it in place.
+    std::memcpy(out.F_start, &s.F[9 * begin], 9 * count * sizeof(double));
 #if TALUS_HAS_ISA_VERSIONS
     if (isa == Isa::avx512) return block_avx512(s, begin, count, L, L_stride, dt, out);
     if (isa == Isa::avx2) return block_avx2(s, begin, count, L, L_stride, dt, out);

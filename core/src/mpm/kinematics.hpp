@@ -33,8 +33,11 @@ struct Inversion {
 // scratch (nothing of it persists past the step), per point k at 9 k, 6 k
 // and k.
 struct BlockIncrement {
-    double *F_end; // 9 per point, row-major
-    double *de;    // 6 per point, Voigt with engineering shears
+    // F at the start of the step, 9 per point, row-major: the particle's F
+    // is F at the end once the kinematics are done, and this copy is what a
+    // retry (cut step) or a failed step's restore starts from.
+    double *F_start;
+    double *de; // 6 per point, Voigt with engineering shears
     double *rho;
     // stress_work(start stress, de) per point: the start stress as the
     // model gets it (rotated for strain-increment models), for the first
@@ -44,13 +47,14 @@ struct BlockIncrement {
 };
 
 // Points [begin, begin + count) of s from their velocity gradients L
-// (row-major 3x3, L_stride apart): F at the end of the step (eq. 39), J
+// (row-major 3x3, L_stride apart): F at the end of the step (eq. 39, in
+// the particle, the start F copied to out.F_start first), J
 // (kept in the particle), rho (eq. 41), the strain increment (eq. 42), div
 // v and, for strain-increment models, the objectively rotated start stress
 // (Hughes-Winget), and the start stress's work on the increment. Returns
 // the block index of the first point that inverted (J <= 0), or count; the
-// points before it are done, the stress of the inverted one and those
-// after it are untouched. The rest of the stress work is the caller's: it
+// points before it are done, the F and stress of the inverted one and
+// those after it are untouched. The rest of the stress work is the caller's: it
 // needs the end stress.
 //
 // Points go through in packs across the vector lanes of instruction set

@@ -97,6 +97,184 @@ template <int N>
 #define TALUS_HAS_SHUFFLEVECTOR 0
 #endif
 
+// N points of C consecutive doubles each (an array of structures: point
+// k's component c at base[C k + c], N C doubles in all) as C vectors with
+// lane k of vector c that value (load_points), and back (store_points): a
+// transpose. Element by element (load_lanes) a lane costs an insert or an
+// extract on the one shuffle port besides its load or store; for the
+// kinematics' 24 components a point that was about two thirds of its time
+// (measured with the transposes made free). With 8 lanes and 6 or 9
+// components the transposes below take whole-vector loads and stores and
+// 18 (C = 6) or about 40 (C = 9) two-vector shuffles for 8 points. The
+// values are only moved: the results are the same bits either way.
+namespace lanes_detail {
+#if TALUS_HAS_SHUFFLEVECTOR
+using V8 = Lanes<8>::V;
+// Each 128-bit lane's even or odd elements, from a then from b. (Macros:
+// a function returning a 512-bit vector, compiled for the baseline, would
+// have another calling convention; -Wpsabi says so.)
+#define TALUS_UNPACK_LO(a, b) __builtin_shufflevector(a, b, 0, 8, 2, 10, 4, 12, 6, 14)
+#define TALUS_UNPACK_HI(a, b) __builtin_shufflevector(a, b, 1, 9, 3, 11, 5, 13, 7, 15)
+// An 8 x 8 transpose in place: r[k][c] becomes r[c][k] (three rounds of 8
+// shuffles: pairs, quads, halves).
+[[gnu::always_inline]] inline void transpose8(V8 (&r)[8]) {
+    V8 t[8], u[8];
+    for (int i = 0; i < 8; i += 2) {
+        t[i] = TALUS_UNPACK_LO(r[i], r[i + 1]);
+        t[i + 1] = TALUS_UNPACK_HI(r[i], r[i + 1]);
+    }
+    // u[0]: components 0 and 4 of rows 0-3; u[1]: 2 and 6; u[2]: 1 and 5;
+    // u[3]: 3 and 7; u[4..7] the same of rows 4-7.
+    for (int h = 0; h < 8; h += 4)
+        for (int j = 0; j < 2; ++j) {
+            u[h + 2 * j] =
+                __builtin_shufflevector(t[h + j], t[h + j + 2], 0, 1, 8, 9, 4, 5, 12, 13);
+            u[h + 2 * j + 1] =
+                __builtin_shufflevector(t[h + j], t[h + j + 2], 2, 3, 10, 11, 6, 7, 14, 15);
+        }
+    constexpr int first[4] = {0, 2, 1, 3}; // the component in u[j]'s first half
+    for (int j = 0; j < 4; ++j) {
+        r[first[j]] = __builtin_shufflevector(u[j], u[j + 4], 0, 1, 2, 3, 8, 9, 10, 11);
+        r[first[j] + 4] = __builtin_shufflevector(u[j], u[j + 4], 4, 5, 6, 7, 12, 13, 14, 15);
+    }
+}
+// Point k's component c at v[C k + c]: a vector per component (C = 9).
+// Point k's components 0-7 start at lane k of v[k] (9 k = 8 k + k): a row
+// each from two vectors; component 8 is lane k of v[k + 1].
+[[gnu::always_inline]] inline void aos9_to_lanes(const V8 (&v)[9], V8 (&c)[9]) {
+    V8 r[8];
+    r[0] = v[0];
+    r[1] = __builtin_shufflevector(v[1], v[2], 1, 2, 3, 4, 5, 6, 7, 8);
+    r[2] = __builtin_shufflevector(v[2], v[3], 2, 3, 4, 5, 6, 7, 8, 9);
+    r[3] = __builtin_shufflevector(v[3], v[4], 3, 4, 5, 6, 7, 8, 9, 10);
+    r[4] = __builtin_shufflevector(v[4], v[5], 4, 5, 6, 7, 8, 9, 10, 11);
+    r[5] = __builtin_shufflevector(v[5], v[6], 5, 6, 7, 8, 9, 10, 11, 12);
+    r[6] = __builtin_shufflevector(v[6], v[7], 6, 7, 8, 9, 10, 11, 12, 13);
+    r[7] = __builtin_shufflevector(v[7], v[8], 7, 8, 9, 10, 11, 12, 13, 14);
+    // Lane k of v[k + 1], k = 0..7: blends.
+    const V8 a = __builtin_shufflevector(v[1], v[2], 0, 9, 2, 3, 4, 5, 6, 7);
+    const V8 b = __builtin_shufflevector(v[3], v[4], 0, 1, 2, 11, 4, 5, 6, 7);
+    const V8 c4 = __builtin_shufflevector(v[5], v[6], 0, 1, 2, 3, 4, 13, 6, 7);
+    const V8 d = __builtin_shufflevector(v[7], v[8], 0, 1, 2, 3, 4, 5, 6, 15);
+    const V8 ab = __builtin_shufflevector(a, b, 0, 1, 10, 11, 4, 5, 6, 7);
+    const V8 cd = __builtin_shufflevector(c4, d, 0, 1, 2, 3, 4, 5, 14, 15);
+    c[8] = __builtin_shufflevector(ab, cd, 0, 1, 2, 3, 12, 13, 14, 15);
+    transpose8(r);
+    for (int i = 0; i < 8; ++i)
+        c[i] = r[i];
+}
+// The inverse: vector j of the stream holds point j - 1's last j
+// components (its 9 - j .. 7 from its row, 8 from c[8]) and point j's
+// first 8 - j.
+[[gnu::always_inline]] inline void lanes_to_aos9(const V8 (&c)[9], V8 (&v)[9]) {
+    V8 r[8];
+    for (int i = 0; i < 8; ++i)
+        r[i] = c[i];
+    transpose8(r);
+    const V8 &e = c[8];
+    v[0] = r[0];
+    // Point j - 1's row from lane 9 - j on, its component 8 (lane j - 1 of
+    // e) at lane j - 1, point j's row from lane 0 at lane j.
+    v[1] = __builtin_shufflevector(__builtin_shufflevector(r[0], e, 8, 0, 0, 0, 0, 0, 0, 0), r[1],
+                                   0, 8, 9, 10, 11, 12, 13, 14);
+    v[2] = __builtin_shufflevector(__builtin_shufflevector(r[1], e, 7, 9, 0, 0, 0, 0, 0, 0), r[2],
+                                   0, 1, 8, 9, 10, 11, 12, 13);
+    v[3] = __builtin_shufflevector(__builtin_shufflevector(r[2], e, 6, 7, 10, 0, 0, 0, 0, 0), r[3],
+                                   0, 1, 2, 8, 9, 10, 11, 12);
+    v[4] = __builtin_shufflevector(__builtin_shufflevector(r[3], e, 5, 6, 7, 11, 0, 0, 0, 0), r[4],
+                                   0, 1, 2, 3, 8, 9, 10, 11);
+    v[5] = __builtin_shufflevector(__builtin_shufflevector(r[4], e, 4, 5, 6, 7, 12, 0, 0, 0), r[5],
+                                   0, 1, 2, 3, 4, 8, 9, 10);
+    v[6] = __builtin_shufflevector(__builtin_shufflevector(r[5], e, 3, 4, 5, 6, 7, 13, 0, 0), r[6],
+                                   0, 1, 2, 3, 4, 5, 8, 9);
+    v[7] = __builtin_shufflevector(__builtin_shufflevector(r[6], e, 2, 3, 4, 5, 6, 7, 14, 0), r[7],
+                                   0, 1, 2, 3, 4, 5, 6, 8);
+    v[8] = __builtin_shufflevector(r[7], e, 1, 2, 3, 4, 5, 6, 7, 15);
+}
+// C = 6: the 48 doubles as 12 quarters Y0..Y11 of 4 (points 0-3 in Y0-Y5,
+// 4-7 in Y6-Y11, the same layout); z[a] = (Y_a, Y_a+6) makes the two
+// 4-point problems one. In a quarter-problem, with pairs of components
+// (p01 = components 0 and 1 of point p): Y0 = (A01 A23), Y1 = (A45 B01),
+// Y2 = (B23 B45), Y3 = (C01 C23), Y4 = (C45 D01), Y5 = (D23 D45); w gathers
+// (A01 C01), (B01 D01), ... and an unpack makes (A0 B0 C0 D0).
+[[gnu::always_inline]] inline void aos6_to_lanes(const V8 (&v)[6], V8 (&c)[6]) {
+    V8 z[6];
+    for (int a = 0; a < 6; ++a) {
+        const V8 &lo = v[a / 2], &hi = v[(a + 6) / 2];
+        z[a] = a % 2 == 0 ? __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 8, 9, 10, 11)
+                          : __builtin_shufflevector(lo, hi, 4, 5, 6, 7, 12, 13, 14, 15);
+    }
+    // (pair from z[i] at chunk ci, pair from z[j] at chunk cj) in each half.
+    const V8 w01a = __builtin_shufflevector(z[0], z[3], 0, 1, 8, 9, 4, 5, 12, 13);   // A01 C01
+    const V8 w01b = __builtin_shufflevector(z[1], z[4], 2, 3, 10, 11, 6, 7, 14, 15); // B01 D01
+    const V8 w23a = __builtin_shufflevector(z[0], z[3], 2, 3, 10, 11, 6, 7, 14, 15); // A23 C23
+    const V8 w23b = __builtin_shufflevector(z[2], z[5], 0, 1, 8, 9, 4, 5, 12, 13);   // B23 D23
+    const V8 w45a = __builtin_shufflevector(z[1], z[4], 0, 1, 8, 9, 4, 5, 12, 13);   // A45 C45
+    const V8 w45b = __builtin_shufflevector(z[2], z[5], 2, 3, 10, 11, 6, 7, 14, 15); // B45 D45
+    c[0] = TALUS_UNPACK_LO(w01a, w01b);
+    c[1] = TALUS_UNPACK_HI(w01a, w01b);
+    c[2] = TALUS_UNPACK_LO(w23a, w23b);
+    c[3] = TALUS_UNPACK_HI(w23a, w23b);
+    c[4] = TALUS_UNPACK_LO(w45a, w45b);
+    c[5] = TALUS_UNPACK_HI(w45a, w45b);
+}
+[[gnu::always_inline]] inline void lanes_to_aos6(const V8 (&c)[6], V8 (&v)[6]) {
+    const V8 w01a = TALUS_UNPACK_LO(c[0], c[1]), w01b = TALUS_UNPACK_HI(c[0], c[1]);
+    const V8 w23a = TALUS_UNPACK_LO(c[2], c[3]), w23b = TALUS_UNPACK_HI(c[2], c[3]);
+    const V8 w45a = TALUS_UNPACK_LO(c[4], c[5]), w45b = TALUS_UNPACK_HI(c[4], c[5]);
+    V8 z[6];
+    z[0] = __builtin_shufflevector(w01a, w23a, 0, 1, 8, 9, 4, 5, 12, 13);   // A01 A23
+    z[3] = __builtin_shufflevector(w01a, w23a, 2, 3, 10, 11, 6, 7, 14, 15); // C01 C23
+    z[1] = __builtin_shufflevector(w45a, w01b, 0, 1, 8, 9, 4, 5, 12, 13);   // A45 B01
+    z[4] = __builtin_shufflevector(w45a, w01b, 2, 3, 10, 11, 6, 7, 14, 15); // C45 D01
+    z[2] = __builtin_shufflevector(w23b, w45b, 0, 1, 8, 9, 4, 5, 12, 13);   // B23 B45
+    z[5] = __builtin_shufflevector(w23b, w45b, 2, 3, 10, 11, 6, 7, 14, 15); // D23 D45
+    for (int i = 0; i < 6; ++i) {
+        const V8 &a = z[(2 * i) % 6], &b = z[(2 * i + 1) % 6];
+        v[i] = i < 3 ? __builtin_shufflevector(a, b, 0, 1, 2, 3, 8, 9, 10, 11)
+                     : __builtin_shufflevector(a, b, 4, 5, 6, 7, 12, 13, 14, 15);
+    }
+}
+#undef TALUS_UNPACK_LO
+#undef TALUS_UNPACK_HI
+#endif
+} // namespace lanes_detail
+
+template <int N, int C, class V>
+[[gnu::always_inline]] inline void load_points(const double *base, V (&out)[C]) {
+#if TALUS_HAS_SHUFFLEVECTOR
+    if constexpr (N == 8 && (C == 6 || C == 9)) {
+        V v[C];
+        for (int j = 0; j < C; ++j)
+            load_vector<8>(base + 8 * j, v[j]);
+        if constexpr (C == 6)
+            lanes_detail::aos6_to_lanes(v, out);
+        else
+            lanes_detail::aos9_to_lanes(v, out);
+        return;
+    }
+#endif
+    for (int c = 0; c < C; ++c)
+        load_lanes<N>(base + c, C, out[c]);
+}
+template <int N, int C, class V>
+[[gnu::always_inline]] inline void store_points(double *base, const V (&in)[C]) {
+#if TALUS_HAS_SHUFFLEVECTOR
+    if constexpr (N == 8 && (C == 6 || C == 9)) {
+        V v[C];
+        if constexpr (C == 6)
+            lanes_detail::lanes_to_aos6(in, v);
+        else
+            lanes_detail::lanes_to_aos9(in, v);
+        for (int j = 0; j < C; ++j)
+            store_vector<8>(base + 8 * j, v[j]);
+        return;
+    }
+#endif
+    for (int c = 0; c < C; ++c)
+        store_lanes<N>(base + c, C, in[c]);
+}
+
 // Whether any lane of v is positive (v: lanes of ones and zeros, from
 // selects with vector arms). Summed by halves within the vector: a test per
 // lane, or an AND of compare masks, GCC 12 builds from scalar compares one

@@ -38,7 +38,7 @@ void MaterialUpdate::prepare(const std::vector<ParticleSet> &sets) {
     for (Scratch &scr : scratch_) {
         if (scr.L.size() == 9 * B && scr.state.size() >= ns * B) continue;
         scr.L.assign(9 * B, 0.0);
-        scr.F_end.resize(9 * B);
+        scr.F_start.resize(9 * B);
         scr.rotation.resize(9 * B);
         scr.length.assign(B, length_);
         scr.de.resize(6 * B);
@@ -93,8 +93,14 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
     Scratch &scr = scratch_[static_cast<std::size_t>(par::thread_index())];
     const std::size_t done = kinematics_block(
         s, begin, count, L, L_stride, inc.dt,
-        {scr.F_end.data(), scr.de.data(), scr.rho.data(), scr.work_start.data()}, isa_);
+        {scr.F_start.data(), scr.de.data(), scr.rho.data(), scr.work_start.data()}, isa_);
+    // A failed step leaves the block's F as it found it (the kinematics
+    // wrote F at the end over it).
+    auto restore_F = [&](std::size_t n) {
+        std::copy_n(scr.F_start.data(), 9 * n, &s.F[9 * begin]);
+    };
     if (done < count) {
+        restore_F(done);
         failures.inverted.record({set, begin + done});
         return;
     }
@@ -117,8 +123,8 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
     const std::size_t ns = s.state_size;
     const Inputs in{&s.stress[6 * begin],
                     ns ? &s.state[ns * begin] : nullptr,
+                    scr.F_start.data(),
                     &s.F[9 * begin],
-                    scr.F_end.data(),
                     scr.de.data(),
                     scr.rho.data(),
                     s.wants_rotation ? scr.rotation.data() : nullptr};
@@ -132,6 +138,7 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
 #endif
     if (!inlined &&
         !advance(s, set, begin, count, inc.t, inc.dt, inc.step, 1.0, 0, in, out, scr, failure)) {
+        restore_F(count);
         failures.material.record(failure);
         return;
     }
@@ -145,7 +152,6 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
     }
     std::copy_n(scr.stress.data(), 6 * count, &s.stress[6 * begin]);
     if (ns) std::copy_n(scr.state.data(), ns * count, &s.state[ns * begin]);
-    std::copy_n(scr.F_end.data(), 9 * count, &s.F[9 * begin]);
 }
 
 // Advances points [begin, begin + count) of set s over [t, t + dt] from

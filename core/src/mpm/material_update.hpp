@@ -123,11 +123,11 @@ class MaterialUpdate {
     };
     // Per thread, sized once by prepare(): no allocation in a step.
     struct Scratch {
-        std::vector<double> L;                          // a fused G2P's gradients
-        std::vector<double> F_end, de, rho, work_start; // the block's kinematics
-        std::vector<double> rotation;                   // its increment's rotations, when asked
-        std::vector<double> length;                     // the characteristic length, per point
-        std::vector<double> stress, state;              // the block's outputs before commit
+        std::vector<double> L;                            // a fused G2P's gradients
+        std::vector<double> F_start, de, rho, work_start; // the block's kinematics
+        std::vector<double> rotation;                     // its increment's rotations, when asked
+        std::vector<double> length;                       // the characteristic length, per point
+        std::vector<double> stress, state;                // the block's outputs before commit
         std::deque<Level> levels; // grown at the end while deeper levels run: references hold
         long cuts = 0;
     };

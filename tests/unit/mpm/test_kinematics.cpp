@@ -37,7 +37,7 @@ using talus::ParticleSet;
 
 struct Block {
     ParticleSet s;
-    std::vector<double> L, F_end, de, rho, work;
+    std::vector<double> L, F_start, de, rho, work;
     Block(int dim, bool finite_strain, std::size_t n) {
         s.dim = dim;
         s.finite_strain = finite_strain;
@@ -46,14 +46,14 @@ struct Block {
         s.rho0 = 2000.0;
         s.resize(n);
         L.assign(9 * n, 0.0);
-        F_end.assign(9 * n, -1.0);
+        F_start.assign(9 * n, -1.0);
         de.assign(6 * n, -1.0);
         rho.assign(n, -1.0);
         work.assign(n, -1.0);
     }
     std::size_t run(Isa isa, std::size_t L_stride = 9) {
         return talus::kinematics_block(s, 0, s.n, L.data(), L_stride, dt,
-                                       {F_end.data(), de.data(), rho.data(), work.data()}, isa);
+                                       {F_start.data(), de.data(), rho.data(), work.data()}, isa);
     }
     // Point by point: a block of one point never fills a pack, so this is
     // the scalar code.
@@ -61,7 +61,7 @@ struct Block {
         for (std::size_t p = 0; p < s.n; ++p)
             if (talus::kinematics_block(
                     s, p, 1, L.data() + L_stride * p, L_stride, dt,
-                    {F_end.data() + 9 * p, de.data() + 6 * p, rho.data() + p, work.data() + p},
+                    {F_start.data() + 9 * p, de.data() + 6 * p, rho.data() + p, work.data() + p},
                     Isa::generic) != 1)
                 return p;
         return s.n;
@@ -119,7 +119,9 @@ TEST(Kinematics, BlockMatchesTheDefinitions) {
                 const Eigen::Matrix3d F1 = (I + b.dt * L) * F0;
                 const std::string where = "dim " + std::to_string(dim) + ", point " +
                                           std::to_string(p) + (finite ? ", finite strain" : "");
-                EXPECT_LT((mat(&b.F_end[9 * p]) - F1).cwiseAbs().maxCoeff(), 1e-13) << where;
+                EXPECT_LT((mat(&b.s.F[9 * p]) - F1).cwiseAbs().maxCoeff(), 1e-13) << where;
+                EXPECT_EQ(0, std::memcmp(&b.F_start[9 * p], &start.s.F[9 * p], 9 * sizeof(double)))
+                    << where;
                 EXPECT_NEAR(b.s.J[p], F1.determinant(), 1e-13) << where;
                 EXPECT_NEAR(b.rho[p], b.s.rho0 / F1.determinant(), 1e-13 * b.s.rho0) << where;
                 const Eigen::Matrix3d E = 0.5 * b.dt * (L + L.transpose());
@@ -167,7 +169,8 @@ TEST(Kinematics, EveryInstructionSetGivesTheScalarBits) {
                             auto same = [&](const double *a, const double *c, std::size_t m) {
                                 return std::memcmp(a, c, m * sizeof(double)) == 0;
                             };
-                            EXPECT_TRUE(same(b.F_end.data(), ref.F_end.data(), 9 * n)) << where;
+                            EXPECT_TRUE(same(b.s.F.data(), ref.s.F.data(), 9 * n)) << where;
+                            EXPECT_TRUE(same(b.F_start.data(), ref.F_start.data(), 9 * n)) << where;
                             EXPECT_TRUE(same(b.de.data(), ref.de.data(), 6 * n)) << where;
                             EXPECT_TRUE(same(b.rho.data(), ref.rho.data(), n)) << where;
                             EXPECT_TRUE(same(b.work.data(), ref.work.data(), n)) << where;
@@ -196,12 +199,16 @@ TEST(Kinematics, AnInvertedPointStopsTheBlockThere) {
             ASSERT_EQ(ref.run(Isa::generic), bad);
             EXPECT_EQ(
                 0, std::memcmp(b.s.stress.data(), ref.s.stress.data(), 6 * bad * sizeof(double)));
-            EXPECT_EQ(0, std::memcmp(b.F_end.data(), ref.F_end.data(), 9 * bad * sizeof(double)));
+            EXPECT_EQ(0, std::memcmp(b.s.F.data(), ref.s.F.data(), 9 * bad * sizeof(double)));
             EXPECT_LT(b.s.J[bad], 0.0); // kept: the error message shows it
-            for (std::size_t p = bad; p < n; ++p)
+            for (std::size_t p = bad; p < n; ++p) {
                 for (int k = 0; k < 6; ++k)
                     EXPECT_EQ(b.s.stress[6 * p + k], start.s.stress[6 * p + k])
                         << "point " << p << " of " << talus::isa_name(isa);
+                for (int k = 0; k < 9; ++k)
+                    EXPECT_EQ(b.s.F[9 * p + k], start.s.F[9 * p + k])
+                        << "point " << p << " of " << talus::isa_name(isa);
+            }
             for (std::size_t p = bad + 1; p < n; ++p)
                 EXPECT_EQ(b.s.J[p], -7.0) << "point " << p << " of " << talus::isa_name(isa);
         }
