@@ -77,8 +77,10 @@ template <int D, bool Rotate>
     de[4] = dt * (L[5] + L[7]);
     de[5] = dt * (L[2] + L[6]);
     if (divv) divv[k] = L[0] + L[4] + L[8];
-    if constexpr (Rotate) hughes_winget(L, dt, &s.stress[6 * p]);
-    out.work_start[k] = stress_work(&s.stress[6 * p], de);
+    double *sig = out.stress_start + 6 * k;
+    std::memcpy(sig, &s.stress[6 * p], 6 * sizeof(double));
+    if constexpr (Rotate) hughes_winget(L, dt, sig);
+    out.work_start[k] = stress_work(sig, de);
     return true;
 }
 
@@ -143,7 +145,7 @@ block_packs(ParticleSet &s, std::size_t begin, std::size_t count, const double *
             const V dv = Lv[0] + Lv[4] + Lv[8];
             std::memcpy(divv + k, &dv, sizeof dv);
         }
-        if constexpr (Rotate) store_points<N>(&s.stress[6 * p], sig);
+        store_points<N>(out.stress_start + 6 * k, sig);
     }
     return by_point(k, count);
 }

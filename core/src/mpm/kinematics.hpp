@@ -37,6 +37,11 @@ struct BlockIncrement {
     // is F at the end once the kinematics are done, and this copy is what a
     // retry (cut step) or a failed step's restore starts from.
     double *F_start;
+    // The start stress as the model gets it, 6 per point (Voigt): turned by
+    // the increment's rotation for strain-increment models, as it was for
+    // finite-strain ones. The particle's stress is left alone: the model
+    // writes the end stress there.
+    double *stress_start;
     double *de; // 6 per point, Voigt with engineering shears
     double *rho;
     // stress_work(start stress, de) per point: the start stress as the
@@ -50,12 +55,12 @@ struct BlockIncrement {
 // (row-major 3x3, L_stride apart): F at the end of the step (eq. 39, in
 // the particle, the start F copied to out.F_start first), J
 // (kept in the particle), rho (eq. 41), the strain increment (eq. 42), div
-// v and, for strain-increment models, the objectively rotated start stress
-// (Hughes-Winget), and the start stress's work on the increment. Returns
-// the block index of the first point that inverted (J <= 0), or count; the
-// points before it are done, the F and stress of the inverted one and
-// those after it are untouched. The rest of the stress work is the caller's: it
-// needs the end stress.
+// v, the start stress as the model gets it (out.stress_start: for
+// strain-increment models objectively rotated, Hughes-Winget), and the
+// start stress's work on the increment. Returns the block index of the
+// first point that inverted (J <= 0), or count; the points before it are
+// done, the F of the inverted one and those after it untouched. The rest
+// of the stress work is the caller's: it needs the end stress.
 //
 // Points go through in packs across the vector lanes of instruction set
 // `isa` (kinematics.cpp), with the arithmetic of one point at a time:

@@ -44,7 +44,7 @@ void MaterialUpdate::prepare(const std::vector<ParticleSet> &sets) {
         scr.de.resize(6 * B);
         scr.rho.resize(B);
         scr.work_start.resize(B);
-        scr.stress.resize(6 * B);
+        scr.stress_start.resize(6 * B);
         scr.state.resize(ns * B);
     }
 }
@@ -91,16 +91,15 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
                            const double *L, std::size_t L_stride, const Increment &inc,
                            UpdateFailures &failures) {
     Scratch &scr = scratch_[static_cast<std::size_t>(par::thread_index())];
-    const std::size_t done = kinematics_block(
-        s, begin, count, L, L_stride, inc.dt,
-        {scr.F_start.data(), scr.de.data(), scr.rho.data(), scr.work_start.data()}, isa_);
-    // A failed step leaves the block's F as it found it (the kinematics
-    // wrote F at the end over it).
-    auto restore_F = [&](std::size_t n) {
-        std::copy_n(scr.F_start.data(), 9 * n, &s.F[9 * begin]);
-    };
+    const std::size_t done =
+        kinematics_block(s, begin, count, L, L_stride, inc.dt,
+                         {scr.F_start.data(), scr.stress_start.data(), scr.de.data(),
+                          scr.rho.data(), scr.work_start.data()},
+                         isa_);
     if (done < count) {
-        restore_F(done);
+        // A failed step leaves the block's F as it found it (the
+        // kinematics wrote F at the end over it).
+        std::copy_n(scr.F_start.data(), 9 * done, &s.F[9 * begin]);
         failures.inverted.record({set, begin + done});
         return;
     }
@@ -111,24 +110,25 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
             for (int d = 0; d < s.dim; ++d)
                 scr.de[6 * k + static_cast<std::size_t>(d)] += corr;
             // The kinematics' start work was on the increment before this.
-            scr.work_start[k] = stress_work(&s.stress[6 * (begin + k)], &scr.de[6 * k]);
+            scr.work_start[k] = stress_work(&scr.stress_start[6 * k], &scr.de[6 * k]);
         }
-    // Stress and state go to scratch and are committed after the call: the
-    // particle's stay the inputs of any retry.
+    // The model reads the start stress from the kinematics' scratch and
+    // writes the end stress over the particle's; the state goes to scratch
+    // and is committed after the call. The inputs of any retry stay.
     // The increment's rotation for a model that rotates tensor state itself
     // (UMAT's DROT): the Hughes-Winget rotation the host gave the stress.
     if (s.wants_rotation)
         for (std::size_t k = 0; k < count; ++k)
             hughes_winget_rotation(L + L_stride * k, inc.dt, &scr.rotation[9 * k]);
     const std::size_t ns = s.state_size;
-    const Inputs in{&s.stress[6 * begin],
+    const Inputs in{scr.stress_start.data(),
                     ns ? &s.state[ns * begin] : nullptr,
                     scr.F_start.data(),
                     &s.F[9 * begin],
                     scr.de.data(),
                     scr.rho.data(),
                     s.wants_rotation ? scr.rotation.data() : nullptr};
-    const Outputs out{scr.stress.data(), ns ? scr.state.data() : nullptr};
+    const Outputs out{&s.stress[6 * begin], ns ? scr.state.data() : nullptr};
     MaterialFailure failure;
 #ifdef TALUS_BENCH_INLINE_HOOKE
     const bool inlined = bench_only::inline_hooke(*s.instance, count, in.stress, in.de, in.rho,
@@ -138,7 +138,11 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
 #endif
     if (!inlined &&
         !advance(s, set, begin, count, inc.t, inc.dt, inc.step, 1.0, 0, in, out, scr, failure)) {
-        restore_F(count);
+        // The step failed: the block's F and stress as the plugin found
+        // them (the stress as turned for it, as the points before a
+        // failure elsewhere keep it).
+        std::copy_n(scr.F_start.data(), 9 * count, &s.F[9 * begin]);
+        std::copy_n(scr.stress_start.data(), 6 * count, &s.stress[6 * begin]);
         failures.material.record(failure);
         return;
     }
@@ -148,9 +152,8 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
         const std::size_t p = begin + k;
         const double *de = &scr.de[6 * k];
         s.work[p] += 0.5 * s.J[p] * s.vol0[p] * scr.work_start[k];
-        s.work[p] += 0.5 * s.J[p] * s.vol0[p] * stress_work(&scr.stress[6 * k], de);
+        s.work[p] += 0.5 * s.J[p] * s.vol0[p] * stress_work(&s.stress[6 * p], de);
     }
-    std::copy_n(scr.stress.data(), 6 * count, &s.stress[6 * begin]);
     if (ns) std::copy_n(scr.state.data(), ns * count, &s.state[ns * begin]);
 }
 

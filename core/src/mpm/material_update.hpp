@@ -1,9 +1,10 @@
 // The material update (seed 000 phase 3): per block of points of one
 // material, the kinematics from each point's velocity gradient into
-// per-thread scratch, the plugin call through the C ABI (stress and state
-// written out of place), and the commit of stress, state and F. One pass
-// over the points; the strain increment, density and end F never live in
-// the particle arrays.
+// per-thread scratch, the plugin call through the C ABI (the end stress
+// over the particle's, the start stress as the model gets it and the end
+// state in scratch), and the commit of the state. One pass over the
+// points; the strain increment, density and start F and stress of a step
+// never live in the particle arrays.
 #pragma once
 
 #include "grid.hpp"
@@ -90,8 +91,8 @@ class MaterialUpdate {
              UpdateFailures &failures);
     // Points [begin, begin + count) of set s, count <= block_size(), with
     // velocity gradients L (row-major 3x3, L_stride apart): kinematics, the
-    // plugin call (sub-stepped on a cut-step request), then stress, state, F
-    // and the stress work committed. Called from any thread.
+    // plugin call (sub-stepped on a cut-step request), then the state and
+    // the stress work committed. Called from any thread.
     void block(ParticleSet &s, std::size_t set, std::size_t begin, std::size_t count,
                const double *L, std::size_t L_stride, const Increment &inc,
                UpdateFailures &failures);
@@ -127,7 +128,8 @@ class MaterialUpdate {
         std::vector<double> F_start, de, rho, work_start; // the block's kinematics
         std::vector<double> rotation;                     // its increment's rotations, when asked
         std::vector<double> length;                       // the characteristic length, per point
-        std::vector<double> stress, state;                // the block's outputs before commit
+        std::vector<double> stress_start,
+            state;                // the start stress as the model gets it; the end state
         std::deque<Level> levels; // grown at the end while deeper levels run: references hold
         long cuts = 0;
     };
