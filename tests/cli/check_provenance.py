@@ -24,7 +24,7 @@ def main():
     version = subprocess.run([talus, "--version"], capture_output=True, text=True,
                              check=True).stdout.split()
     assert rec["talus_version"] in version, (rec["talus_version"], version)
-    assert rec["material_abi"] == "1.1", rec["material_abi"]
+    assert rec["material_abi"] == "1.2", rec["material_abi"]
     assert rec["input"]["sha256"] == sha256(rec["input"]["file"]), rec["input"]
     names = [m["name"] for m in rec["materials"]]
     assert material in names, names

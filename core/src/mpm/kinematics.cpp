@@ -81,6 +81,11 @@ template <int D, bool Rotate>
     std::memcpy(sig, &s.stress[6 * p], 6 * sizeof(double));
     if constexpr (Rotate) hughes_winget(L, dt, sig);
     out.work_start[k] = stress_work(sig, de);
+    // x - x is 0 for a finite x and NaN otherwise; so is the sum.
+    double nonfinite = (J - J) + (out.rho[k] - out.rho[k]);
+    for (int c = 0; c < 6; ++c)
+        nonfinite += (de[c] - de[c]) + (sig[c] - sig[c]);
+    if (!(nonfinite == 0.0)) *out.finite = false;
     return true;
 }
 
@@ -94,6 +99,8 @@ block_packs(ParticleSet &s, std::size_t begin, std::size_t count, const double *
     using V = typename Lanes<N>::V;
     double *divv = s.has_divv ? &s.divv[begin] : nullptr;
     const double rho0 = s.rho0;
+    // Lanes of ones where a pack had a value that is not finite (one_point).
+    V nonfinite{};
     std::size_t k = 0;
     auto by_point = [&](std::size_t from, std::size_t to) __attribute__((always_inline)) {
         for (std::size_t j = from; j < to; ++j)
@@ -146,7 +153,12 @@ block_packs(ParticleSet &s, std::size_t begin, std::size_t count, const double *
             std::memcpy(divv + k, &dv, sizeof dv);
         }
         store_points<N>(out.stress_start + 6 * k, sig);
+        V t = (J - J) + (rho - rho);
+        for (int c = 0; c < 6; ++c)
+            t += (de[c] - de[c]) + (sig[c] - sig[c]);
+        nonfinite += t == zero ? zero : one;
     }
+    if (any_lane<N>(nonfinite)) *out.finite = false;
     return by_point(k, count);
 }
 

@@ -49,6 +49,13 @@ struct BlockIncrement {
     // half of the stress work's trapezoid (MaterialUpdate). Computed here,
     // where both are in the vector lanes already.
     double *work_start;
+    // Set to false when a value the model gets is not finite: a strain
+    // increment, a density, J (and with it F: a J that is finite comes
+    // from F_start and F_end that are), the start stress as the model
+    // gets it. Left alone otherwise: the caller sets it true first. The
+    // material update then tells the plugin whether its inputs are finite
+    // (TALUS_BATCH_INPUTS_FINITE, material_abi.h).
+    bool *finite;
 };
 
 // Points [begin, begin + count) of s from their velocity gradients L

@@ -91,10 +91,11 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
                            const double *L, std::size_t L_stride, const Increment &inc,
                            UpdateFailures &failures) {
     Scratch &scr = scratch_[static_cast<std::size_t>(par::thread_index())];
+    bool finite = true;
     const std::size_t done =
         kinematics_block(s, begin, count, L, L_stride, inc.dt,
                          {scr.F_start.data(), scr.stress_start.data(), scr.de.data(),
-                          scr.rho.data(), scr.work_start.data()},
+                          scr.rho.data(), scr.work_start.data(), &finite},
                          isa_);
     if (done < count) {
         // A failed step leaves the block's F as it found it (the
@@ -121,13 +122,13 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
         for (std::size_t k = 0; k < count; ++k)
             hughes_winget_rotation(L + L_stride * k, inc.dt, &scr.rotation[9 * k]);
     const std::size_t ns = s.state_size;
-    const Inputs in{scr.stress_start.data(),
-                    ns ? &s.state[ns * begin] : nullptr,
-                    scr.F_start.data(),
-                    &s.F[9 * begin],
-                    scr.de.data(),
-                    scr.rho.data(),
-                    s.wants_rotation ? scr.rotation.data() : nullptr};
+    const Inputs in{scr.stress_start.data(), ns ? &s.state[ns * begin] : nullptr,
+                    scr.F_start.data(), &s.F[9 * begin], scr.de.data(), scr.rho.data(),
+                    s.wants_rotation ? scr.rotation.data() : nullptr,
+                    // The set-up call's inputs (initial stress and state) are
+                    // not the host's outputs; nor, for the test, is a
+                    // dilation-corrected increment.
+                    finite && inc.step > 0 && !inc.dilation};
     const Outputs out{&s.stress[6 * begin], ns ? scr.state.data() : nullptr};
     MaterialFailure failure;
 #ifdef TALUS_BENCH_INLINE_HOOKE
@@ -170,7 +171,7 @@ bool MaterialUpdate::advance(ParticleSet &s, std::size_t set, std::size_t begin,
                              MaterialFailure &failure) {
     const std::size_t ns = s.state_size;
     talus_batch b{};
-    b.flags = TALUS_BATCH_WANT_WAVE_SPEED;
+    b.flags = TALUS_BATCH_WANT_WAVE_SPEED | (in.finite ? TALUS_BATCH_INPUTS_FINITE : 0u);
     b.n_points = count;
     b.time = t;
     b.dt = dt;
@@ -221,6 +222,7 @@ bool MaterialUpdate::advance(ParticleSet &s, std::size_t set, std::size_t begin,
             for (std::size_t c = 0; c < 6; ++c)
                 lv.de[6 * p + c] = in.de[6 * p + c] / k;
         Inputs part = in;
+        part.finite = false;
         for (long j = 1; j <= parts; ++j) {
             const double a0 = static_cast<double>(j - 1) / k, a1 = static_cast<double>(j) / k;
             for (std::size_t p = 0; p < count; ++p) {

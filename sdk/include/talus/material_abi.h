@@ -77,7 +77,7 @@
 #include <stdint.h>
 
 #define TALUS_ABI_VERSION_MAJOR 1
-#define TALUS_ABI_VERSION_MINOR 1
+#define TALUS_ABI_VERSION_MINOR 2
 
 /* Whether the structure *ptr (of type `type`, which starts with
  * struct_size) holds `field`: its writer knew the field. Test this before
@@ -266,6 +266,14 @@ typedef struct talus_create_args {
 
 #define TALUS_BATCH_WANT_WAVE_SPEED 1u /* fill wave_speed */
 #define TALUS_BATCH_WANT_TANGENT 2u    /* fill tangent */
+/* ABI 1.2: the host has made sure that every input value of this call is
+ * finite -- strain_increment, F_start, F_end, stress_start, state_start --
+ * and every density positive (its own screened outputs of the step before,
+ * and its kinematics, tested there), so the plugin may leave out its own
+ * screen of them. A host that cannot say so leaves the flag off; a plugin
+ * may ignore it (1.0 and 1.1 plugins do). The host screens the outputs
+ * (stress, state, wave speeds, tangent) whatever the flag. */
+#define TALUS_BATCH_INPUTS_FINITE 4u
 
 /* Arrays hold n_points consecutive records: point i's strain increment is
  * strain_increment[6*i .. 6*i+5], its F_end is F_end[9*i .. 9*i+8], and its

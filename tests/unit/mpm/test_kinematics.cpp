@@ -26,7 +26,9 @@
 #include <Eigen/Dense>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstring>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -55,7 +57,7 @@ struct Block {
     std::size_t run(Isa isa, std::size_t L_stride = 9) {
         return talus::kinematics_block(
             s, 0, s.n, L.data(), L_stride, dt,
-            {F_start.data(), stress.data(), de.data(), rho.data(), work.data()}, isa);
+            {F_start.data(), stress.data(), de.data(), rho.data(), work.data(), &finite}, isa);
     }
     // Point by point: a block of one point never fills a pack, so this is
     // the scalar code.
@@ -63,12 +65,14 @@ struct Block {
         for (std::size_t p = 0; p < s.n; ++p)
             if (talus::kinematics_block(s, p, 1, L.data() + L_stride * p, L_stride, dt,
                                         {F_start.data() + 9 * p, stress.data() + 6 * p,
-                                         de.data() + 6 * p, rho.data() + p, work.data() + p},
+                                         de.data() + 6 * p, rho.data() + p, work.data() + p,
+                                         &finite},
                                         Isa::generic) != 1)
                 return p;
         return s.n;
     }
     double dt = 0.05;
+    bool finite = true;
 };
 
 // Random points: F near the identity, L of order one (dt L of order 0.05),
@@ -211,4 +215,39 @@ TEST(Kinematics, AnInvertedPointStopsTheBlockThere) {
             for (std::size_t p = bad + 1; p < n; ++p)
                 EXPECT_EQ(b.s.J[p], -7.0) << "point " << p << " of " << talus::isa_name(isa);
         }
+}
+
+// What the material update tells the plugin (TALUS_BATCH_INPUTS_FINITE):
+// the block's inputs are finite for ordinary points, and not when a start
+// stress is infinite or NaN, or when J is so small that the density
+// overflows, whether the point is in a pack or in the scalar remainder.
+TEST(Kinematics, ANonFiniteInputIsReported) {
+    const double inf = std::numeric_limits<double>::infinity();
+    for (int dim : {2, 3})
+        for (Isa isa : runnable_isas())
+            for (std::size_t at : {2u, 12u}) { // a pack's lane, the remainder
+                const std::string where = std::string(talus::isa_name(isa)) + ", dim " +
+                                          std::to_string(dim) + ", point " + std::to_string(at);
+                Block ok = random_block(dim, false, 13, 3);
+                ASSERT_EQ(ok.run(isa), 13u);
+                EXPECT_TRUE(ok.finite) << where;
+                for (double bad : {inf, std::numeric_limits<double>::quiet_NaN()}) {
+                    Block b = random_block(dim, false, 13, 3);
+                    b.s.stress[6 * at + 1] = bad;
+                    ASSERT_EQ(b.run(isa), 13u);
+                    EXPECT_FALSE(b.finite) << where << ", stress " << bad;
+                }
+                // J = 1e-316 (subnormal, positive: not an inversion), so
+                // rho0 / J overflows.
+                Block tiny = random_block(dim, false, 13, 3);
+                double *F = &tiny.s.F[9 * at];
+                std::fill(F, F + 9, 0.0);
+                for (int d = 0; d < dim; ++d)
+                    F[4 * d] = dim == 2 ? 1e-158 : 1e-105;
+                if (dim == 2) F[8] = 1.0;
+                std::fill(&tiny.L[9 * at], &tiny.L[9 * at] + 9, 0.0);
+                ASSERT_EQ(tiny.run(isa), 13u) << where;
+                EXPECT_GT(tiny.s.J[at], 0.0) << where;
+                EXPECT_FALSE(tiny.finite) << where << ", density";
+            }
 }

@@ -90,3 +90,32 @@ TEST(PluginContext, TheIncrementsRotationReachesTheModel) {
     EXPECT_NEAR(Q[3], expected, 1e-15);
     EXPECT_NEAR(Q[0] * Q[0] + Q[3] * Q[3], 1.0, 1e-15); // orthogonal
 }
+
+// ABI 1.2: the solver says its inputs are finite (TALUS_BATCH_INPUTS_FINITE)
+// on every call of a step, and not on the set-up call. The fixture fails a
+// call where that is not so, and checks the inputs it is told are finite.
+// Two threads, a block that strains (gravity on a floor), both a fused and
+// a split pipeline (USL; MUSL with its separate material update).
+TEST(PluginContext, StepCallsSayTheirInputsAreFinite) {
+    for (const char *scheme : {"usl", "musl"}) {
+        SCOPED_TRACE(scheme);
+        const std::string yaml =
+            "talus: 1\ndimension: 2\ngrid: {origin: [0, 0], size: [1, 1], cell: 0.1}\n"
+            "plugins: ['" +
+            talus::test::fixture("wants_finite").string() +
+            "']\n"
+            "materials:\n  m: {model: wants_finite, density: 1000, youngs_modulus: 1.0e6, "
+            "poisson_ratio: 0.3}\n"
+            "groups:\n  a: {material: m, particles_per_cell: 2,\n"
+            "      shape: {box: {min: [0.2, 0.0], max: [0.8, 0.5]}}}\n"
+            "boundaries: {y-: fixed}\ngravity: [0, -9.81]\n"
+            "solver: {scheme: " +
+            std::string(scheme) + "}\ntime: {end: 1}\n";
+        const int before = omp_get_max_threads();
+        omp_set_num_threads(2);
+        auto s = talus::test::sim_from_text(yaml);
+        for (int k = 0; k < 20; ++k)
+            ASSERT_NO_THROW(s->sim->step(1.0));
+        omp_set_num_threads(before);
+    }
+}
