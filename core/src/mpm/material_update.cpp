@@ -125,9 +125,9 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
     const Inputs in{scr.stress_start.data(), ns ? &s.state[ns * begin] : nullptr,
                     scr.F_start.data(), &s.F[9 * begin], scr.de.data(), scr.rho.data(),
                     s.wants_rotation ? scr.rotation.data() : nullptr,
-                    // The set-up call's inputs (initial stress and state) are
-                    // not the host's outputs; nor, for the test, is a
-                    // dilation-corrected increment.
+                    // Not on the set-up call, whose initial stress and state
+                    // are the scenario's, nor where cell averaging changed
+                    // the increment after the kinematics tested it.
                     finite && inc.step > 0 && !inc.dilation};
     const Outputs out{&s.stress[6 * begin], ns ? scr.state.data() : nullptr};
     MaterialFailure failure;

@@ -132,8 +132,8 @@ class MaterialUpdate {
         std::vector<double> F_start, de, rho, work_start; // the block's kinematics
         std::vector<double> rotation;                     // its increment's rotations, when asked
         std::vector<double> length;                       // the characteristic length, per point
-        std::vector<double> stress_start,
-            state;                // the start stress as the model gets it; the end state
+        std::vector<double> stress_start;                 // the start stress as the model gets it
+        std::vector<double> state;                        // the end state, before commit
         std::deque<Level> levels; // grown at the end while deeper levels run: references hold
         long cuts = 0;
     };

@@ -3,6 +3,7 @@
 
 #include <fmt/format.h>
 
+#include <cmath>
 #include <cstring>
 #include <type_traits>
 
@@ -104,6 +105,18 @@ void Simulation::Impl::restore_from(const Snapshot &snap) {
                                           : std::string()));
             if (in.n > 0)
                 std::memcpy(col.data(), in.columns[k].bytes.data(), in.columns[k].bytes.size());
+            // Every value a run holds is finite (a step that makes one
+            // otherwise fails), so a checkpoint with one is damaged; and the
+            // plugins are told their inputs are finite
+            // (TALUS_BATCH_INPUTS_FINITE): the state comes in only from
+            // their screened outputs, the scenario, or here.
+            if constexpr (std::is_floating_point_v<T>)
+                for (std::size_t i = 0; i < in.n * stride; ++i)
+                    if (!std::isfinite(col[i]))
+                        throw Error(fmt::format(
+                            "the snapshot's particle set {} holds a non-finite value ({}) in "
+                            "'{}' of particle {}: the checkpoint is damaged",
+                            si, col[i], name, set.id[i / stride]));
             ++k;
         });
         if (k != in.columns.size())

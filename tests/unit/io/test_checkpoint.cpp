@@ -9,8 +9,13 @@
 
 #include <gtest/gtest.h>
 
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 namespace {
@@ -93,6 +98,40 @@ TEST(Checkpoint, AFileWrittenAndReadContinuesTheRunBitForBit) {
         expect_same_particles(*whole->sim, resumed);
     }
     fs::remove_all(dir);
+}
+
+// A checkpoint whose particles hold a value that is not finite is damaged
+// (a run never keeps one: the step that makes one fails), and the plugins
+// are told their inputs are finite: the restart is refused, naming the
+// column and the particle, whichever column it is in.
+TEST(Checkpoint, ANonFiniteParticleValueIsRefused) {
+    auto first = talus::test::sim_from_text(kScenario);
+    for (int k = 0; k < 5; ++k)
+        first->sim->step(1.0);
+    const talus::Snapshot good = first->sim->snapshot();
+    for (const char *column : {"state", "stress", "x"}) {
+        talus::Snapshot bad = good;
+        std::vector<talus::Snapshot::Column> &cols = bad.sets.at(0).columns;
+        const auto it =
+            std::find_if(cols.begin(), cols.end(), [&](const auto &c) { return c.name == column; });
+        ASSERT_NE(it, cols.end()) << column;
+        const std::size_t particle = 7;
+        const double nan = std::numeric_limits<double>::quiet_NaN();
+        // Its second value (the only one of a scalar column).
+        const std::size_t at = it->stride * particle + (it->stride > 1 ? 1 : 0);
+        std::memcpy(it->bytes.data() + sizeof(double) * at, &nan, sizeof nan);
+        auto second = talus::test::sim_from_text(kScenario);
+        try {
+            talus::Simulation resumed(second->scenario, {}, bad);
+            ADD_FAILURE() << "a NaN in '" << column << "' was restored";
+        } catch (const talus::Error &e) {
+            const std::string msg = e.what();
+            EXPECT_NE(msg.find(fmt::format("non-finite value (nan) in '{}' of particle {}", column,
+                                           first->sim->sets()[0].id[particle])),
+                      std::string::npos)
+                << msg;
+        }
+    }
 }
 
 // A plugin file that changed since the checkpoint is named with the
