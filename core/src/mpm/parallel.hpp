@@ -102,6 +102,17 @@ void for_each_block(std::size_t n_blocks, F &&f) {
         f(static_cast<std::size_t>(b));
 }
 
+// f(t) for a few independent tasks of uneven cost (the columns of a
+// particle set), one at a time to whichever thread is free.
+template <class F>
+void for_each_task(std::size_t n_tasks, F &&f) {
+    const std::ptrdiff_t N = static_cast<std::ptrdiff_t>(n_tasks);
+    ++regions();
+#pragma omp parallel for schedule(dynamic, 1)
+    for (std::ptrdiff_t t = 0; t < N; ++t)
+        f(static_cast<std::size_t>(t));
+}
+
 // f(slab) for every slab, two colours one after the other: within a colour
 // slabs run concurrently and must not write the same memory (the caller's
 // slabs are wide enough that every other one is apart, see Ordering).
