@@ -390,7 +390,9 @@ TEST(Loader, TheSdkNamesThePointWithANonFiniteOrInvalidInput) {
     ASSERT_EQ(inst->parameters().size(), 2u);
     EXPECT_EQ(inst->parameters()[0].scalar, p[0]);
     EXPECT_EQ(inst->parameters()[1].scalar, p[1]);
-    constexpr std::size_t n = 5;
+    // Longer than two of the screens' vector loops (16 values a turn with
+    // AVX-512) and a remainder, so that a bad point is met in every part.
+    constexpr std::size_t n = 37;
     const double inf = std::numeric_limits<double>::infinity();
     const double nan = std::numeric_limits<double>::quiet_NaN();
     struct Bad {
@@ -399,14 +401,16 @@ TEST(Loader, TheSdkNamesThePointWithANonFiniteOrInvalidInput) {
         int array; // 0 strain increment, 1 stress, 2 density
         std::size_t component;
     };
-    const Bad bads[] = {{"NaN strain", nan, 0, 3},       {"inf strain", -inf, 0, 5},
-                        {"NaN stress", nan, 1, 0},       {"inf stress", inf, 1, 4},
-                        {"NaN density", nan, 2, 0},      {"zero density", 0.0, 2, 0},
-                        {"negative density", -1.0, 2, 0}};
+    const Bad bads[] = {{"NaN strain", nan, 0, 3},        {"inf strain", -inf, 0, 5},
+                        {"NaN stress", nan, 1, 0},        {"inf stress", inf, 1, 4},
+                        {"NaN density", nan, 2, 0},       {"zero density", 0.0, 2, 0},
+                        {"negative density", -1.0, 2, 0}, {"inf density", inf, 2, 0}};
     // With TALUS_BATCH_INPUTS_FINITE (the host says it has screened them)
     // the SDK leaves its screen out, and a value that was bad after all
-    // comes out as a non-finite stress or wave speed, which the host's
-    // screen of the outputs catches at the same point: still an error.
+    // comes out as a non-finite stress or a wave speed that is not positive
+    // and finite (infinite, NaN or, from an infinite density, zero), which
+    // the host's screen of the outputs catches at the same point: still an
+    // error.
     for (const bool host_screened : {false, true})
         for (const Bad &bad : bads)
             for (std::size_t at = 0; at < n; ++at) {

@@ -643,9 +643,14 @@ struct Descriptors {
         const std::size_t n = b->n_points;
         const bool screened = (b->flags & TALUS_BATCH_INPUTS_FINITE) != 0;
         auto bad_inputs = [&](std::size_t first, std::size_t count) {
+            // Positive and finite (an infinite density passed `> 0` alone
+            // and reached the model, whose wave speed came out zero); the
+            // two tests without a branch, so that the loop vectorises.
             bool density_ok = true;
-            for (std::size_t k = first; k < first + count; ++k)
-                density_ok &= b->density[k] > 0.0;
+            for (std::size_t k = first; k < first + count; ++k) {
+                const double rho = b->density[k];
+                density_ok &= (rho > 0.0) & (rho < std::numeric_limits<double>::infinity());
+            }
             return !density_ok || any_nonfinite(b->strain_increment + 6 * first, 6 * count) ||
                    any_nonfinite(b->stress_start + 6 * first, 6 * count) ||
                    (M::info.finite_strain && any_nonfinite(b->F_end + 9 * first, 9 * count)) ||
