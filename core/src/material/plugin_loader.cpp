@@ -702,12 +702,17 @@ TALUS_SCREEN_CLONES bool nonfinite(const double *p, std::size_t count) {
     return any != 0;
 }
 
-// Whether every wave speed is positive and finite.
+// Whether every wave speed is positive and finite (NaN fails both tests).
+// The failures are or-ed without a branch so that the loop vectorises: as
+// `ok &= c > 0 && c < inf` it was a scalar loop with a branch per value, 1 %
+// of a 2D step.
 TALUS_SCREEN_CLONES bool speeds_valid(const double *c, std::size_t n) {
-    bool ok = true;
-    for (std::size_t i = 0; i < n; ++i)
-        ok &= c[i] > 0.0 && c[i] < INFINITY;
-    return ok;
+    std::uint32_t bad = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+        const double x = c[i];
+        bad |= static_cast<std::uint32_t>(!(x > 0.0)) | static_cast<std::uint32_t>(!(x < INFINITY));
+    }
+    return bad == 0;
 }
 
 } // namespace
