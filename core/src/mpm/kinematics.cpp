@@ -194,7 +194,63 @@ TALUS_TARGET_AVX512 std::size_t block_avx512(ParticleSet &s, std::size_t begin, 
 }
 #endif
 
+// The end stress's half of the stress work (stress_work_block), in packs
+// of N points with the arithmetic of one point at a time.
+template <int N>
+[[gnu::always_inline]] inline void work_packs(ParticleSet &s, std::size_t begin, std::size_t count,
+                                              const double *de, const double *work_start) {
+    using V = typename Lanes<N>::V;
+    std::size_t k = 0;
+    for (; k + N <= count; k += N) {
+        const std::size_t p = begin + k;
+        V sig[6], d[6], J, vol0, w0, work;
+        load_points<N>(&s.stress[6 * p], sig);
+        load_points<N>(de + 6 * k, d);
+        load_vector<N>(&s.J[p], J);
+        load_vector<N>(&s.vol0[p], vol0);
+        load_vector<N>(work_start + k, w0);
+        load_vector<N>(&s.work[p], work);
+        // stress_work's sum in its order, lane by lane.
+        const V w1 = sig[0] * d[0] + sig[1] * d[1] + sig[2] * d[2] + sig[3] * d[3] + sig[4] * d[4] +
+                     sig[5] * d[5];
+        work += 0.5 * J * vol0 * w0;
+        work += 0.5 * J * vol0 * w1;
+        store_vector<N>(&s.work[p], work);
+    }
+    for (; k < count; ++k) {
+        const std::size_t p = begin + k;
+        s.work[p] += 0.5 * s.J[p] * s.vol0[p] * work_start[k];
+        s.work[p] += 0.5 * s.J[p] * s.vol0[p] * stress_work(&s.stress[6 * p], de + 6 * k);
+    }
+}
+
+void work_generic(ParticleSet &s, std::size_t begin, std::size_t count, const double *de,
+                  const double *work_start) {
+    work_packs<2>(s, begin, count, de, work_start);
+}
+#if TALUS_HAS_ISA_VERSIONS
+TALUS_TARGET_AVX2 void work_avx2(ParticleSet &s, std::size_t begin, std::size_t count,
+                                 const double *de, const double *work_start) {
+    work_packs<4>(s, begin, count, de, work_start);
+}
+TALUS_TARGET_AVX512 void work_avx512(ParticleSet &s, std::size_t begin, std::size_t count,
+                                     const double *de, const double *work_start) {
+    work_packs<8>(s, begin, count, de, work_start);
+}
+#endif
+
 } // namespace
+
+void stress_work_block(ParticleSet &s, std::size_t begin, std::size_t count, const double *de,
+                       const double *work_start, Isa isa) {
+#if TALUS_HAS_ISA_VERSIONS
+    if (isa == Isa::avx512) return work_avx512(s, begin, count, de, work_start);
+    if (isa == Isa::avx2) return work_avx2(s, begin, count, de, work_start);
+#else
+    (void)isa; // every instruction set runs the generic version
+#endif
+    work_generic(s, begin, count, de, work_start);
+}
 
 std::size_t kinematics_block(ParticleSet &s, std::size_t begin, std::size_t count, const double *L,
                              std::size_t L_stride, double dt, const BlockIncrement &out, Isa isa) {

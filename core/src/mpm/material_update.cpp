@@ -149,12 +149,7 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
     }
     // The stress work over the step (trapezoidal: the rotated start stress
     // and the end stress on the increment; the first from the kinematics).
-    for (std::size_t k = 0; k < count; ++k) {
-        const std::size_t p = begin + k;
-        const double *de = &scr.de[6 * k];
-        s.work[p] += 0.5 * s.J[p] * s.vol0[p] * scr.work_start[k];
-        s.work[p] += 0.5 * s.J[p] * s.vol0[p] * stress_work(&s.stress[6 * p], de);
-    }
+    stress_work_block(s, begin, count, scr.de.data(), scr.work_start.data(), isa_);
     if (ns) std::copy_n(scr.state.data(), ns * count, &s.state[ns * begin]);
 }
 

@@ -251,3 +251,51 @@ TEST(Kinematics, ANonFiniteInputIsReported) {
                 EXPECT_FALSE(tiny.finite) << where << ", density";
             }
 }
+
+// The end stress's half of the stress work (stress_work_block): against its
+// definition, work + V/2 (w_start + sigma_end : de) with V = J vol0 and the
+// shears engineering, computed here with Eigen's double contraction; and
+// every instruction set against the scalar code (a block of one point)
+// bit for bit, at counts below, at and past a pack and a plugin batch.
+// Each value is the sum of a few products of order 1e5 * 0.05 * V: 1e-13
+// of that scale bounds the different order of the operations.
+TEST(Kinematics, StressWorkBlockMatchesItsDefinitionOnEveryInstructionSet) {
+    for (std::size_t n : {1u, 7u, 8u, 13u, 128u}) {
+        auto make = [&] {
+            Block b = random_block(3, false, n, 17);
+            EXPECT_EQ(b.run(Isa::generic), n);
+            std::mt19937_64 rng(23);
+            std::uniform_real_distribution<double> u(-1.0, 1.0);
+            for (std::size_t p = 0; p < n; ++p) {
+                b.s.vol0[p] = 1e-3 * (1.5 + u(rng));
+                b.s.work[p] = 10.0 * u(rng);
+                for (int k = 0; k < 6; ++k)
+                    b.s.stress[6 * p + k] = 1e5 * u(rng); // the end stress
+            }
+            return b;
+        };
+        Block ref = make();
+        const Block start = make();
+        for (std::size_t p = 0; p < n; ++p)
+            talus::stress_work_block(ref.s, p, 1, ref.de.data() + 6 * p, ref.work.data() + p,
+                                     Isa::generic);
+        for (std::size_t p = 0; p < n; ++p) {
+            const double *s = &start.s.stress[6 * p], *de = &start.de[6 * p];
+            Eigen::Matrix3d S, E;
+            S << s[0], s[3], s[5], s[3], s[1], s[4], s[5], s[4], s[2];
+            E << de[0], de[3] / 2, de[5] / 2, de[3] / 2, de[1], de[4] / 2, de[5] / 2, de[4] / 2,
+                de[2];
+            const double V = start.s.J[p] * start.s.vol0[p];
+            const double expect =
+                start.s.work[p] + 0.5 * V * (start.work[p] + (S.cwiseProduct(E)).sum());
+            EXPECT_NEAR(ref.s.work[p], expect, 1e-13 * 1e5 * 0.05 * V + 1e-15 * 10.0)
+                << "n " << n << ", point " << p;
+        }
+        for (Isa isa : runnable_isas()) {
+            Block b = make();
+            talus::stress_work_block(b.s, 0, n, b.de.data(), b.work.data(), isa);
+            EXPECT_EQ(0, std::memcmp(b.s.work.data(), ref.s.work.data(), n * sizeof(double)))
+                << talus::isa_name(isa) << ", n " << n;
+        }
+    }
+}
