@@ -92,25 +92,16 @@ void for_each_chunk(std::size_t n, F &&f, Schedule schedule = Schedule::equal_sh
 }
 
 // f(b) for blocks b in [0, n_blocks) of uneven cost (material batches: a
-// plastic block costs more than an elastic one), dealt out dynamically.
+// plastic block costs more than an elastic one), dealt out dynamically,
+// `grain` at a time (1 for a few large tasks: the columns of a particle
+// set in its re-sort).
 template <class F>
-void for_each_block(std::size_t n_blocks, F &&f) {
+void for_each_block(std::size_t n_blocks, F &&f, int grain = 4) {
     const std::ptrdiff_t N = static_cast<std::ptrdiff_t>(n_blocks);
     ++regions();
-#pragma omp parallel for schedule(dynamic, 4)
+#pragma omp parallel for schedule(dynamic, grain)
     for (std::ptrdiff_t b = 0; b < N; ++b)
         f(static_cast<std::size_t>(b));
-}
-
-// f(t) for a few independent tasks of uneven cost (the columns of a
-// particle set), one at a time to whichever thread is free.
-template <class F>
-void for_each_task(std::size_t n_tasks, F &&f) {
-    const std::ptrdiff_t N = static_cast<std::ptrdiff_t>(n_tasks);
-    ++regions();
-#pragma omp parallel for schedule(dynamic, 1)
-    for (std::ptrdiff_t t = 0; t < N; ++t)
-        f(static_cast<std::size_t>(t));
 }
 
 // f(slab) for every slab, two colours one after the other: within a colour
