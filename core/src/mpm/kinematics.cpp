@@ -89,6 +89,15 @@ template <int D, bool Rotate>
     return true;
 }
 
+// stress_work (kinematics.hpp) lane by lane, its sum in its order: the
+// same bits as the scalar code in every lane. (Into w, not returned: a
+// vector returned by value changes the calling convention with the target.)
+template <class V>
+[[gnu::always_inline]] inline void stress_work_lanes(const V (&sig)[6], const V (&de)[6], V &w) {
+    w = sig[0] * de[0] + sig[1] * de[1] + sig[2] * de[2] + sig[3] * de[3] + sig[4] * de[4] +
+        sig[5] * de[5];
+}
+
 // The block in packs of N points, the rest point by point. A pack with an
 // inverted point, or (plane strain) a spin off the plane, goes point by
 // point too: nothing of it is stored before those tests.
@@ -144,9 +153,8 @@ block_packs(ParticleSet &s, std::size_t begin, std::size_t count, const double *
         const V de[6] = {dt * Lv[0],           dt * Lv[4],           dt * Lv[8],
                          dt * (Lv[1] + Lv[3]), dt * (Lv[5] + Lv[7]), dt * (Lv[2] + Lv[6])};
         store_points<N>(out.de + 6 * k, de);
-        // stress_work's sum in its order, lane by lane.
-        const V w = sig[0] * de[0] + sig[1] * de[1] + sig[2] * de[2] + sig[3] * de[3] +
-                    sig[4] * de[4] + sig[5] * de[5];
+        V w;
+        stress_work_lanes(sig, de, w);
         std::memcpy(out.work_start + k, &w, sizeof w);
         if (divv) {
             const V dv = Lv[0] + Lv[4] + Lv[8];
@@ -210,9 +218,8 @@ template <int N>
         load_vector<N>(&s.vol0[p], vol0);
         load_vector<N>(work_start + k, w0);
         load_vector<N>(&s.work[p], work);
-        // stress_work's sum in its order, lane by lane.
-        const V w1 = sig[0] * d[0] + sig[1] * d[1] + sig[2] * d[2] + sig[3] * d[3] + sig[4] * d[4] +
-                     sig[5] * d[5];
+        V w1;
+        stress_work_lanes(sig, d, w1);
         work += 0.5 * J * vol0 * w0;
         work += 0.5 * J * vol0 * w1;
         store_vector<N>(&s.work[p], work);

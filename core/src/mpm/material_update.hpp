@@ -112,7 +112,7 @@ class MaterialUpdate {
     struct Inputs {
         const double *stress, *state, *F_start, *F_end, *de, *rho;
         const double *rotation; // null unless the model wants it
-        // Every value above finite and every density positive, as the
+        // Every value above finite (densities also positive), as the
         // kinematics found them (TALUS_BATCH_INPUTS_FINITE); never for the
         // parts of a cut step, whose densities come from interpolated F.
         bool finite = false;

@@ -268,9 +268,9 @@ typedef struct talus_create_args {
 #define TALUS_BATCH_WANT_TANGENT 2u    /* fill tangent */
 /* ABI 1.2: the host has made sure that every input value of this call is
  * finite -- strain_increment, F_start, F_end, stress_start, state_start --
- * and every density positive (its own screened outputs of the step before,
- * and its kinematics, tested there), so the plugin may leave out its own
- * screen of them. A host that cannot say so leaves the flag off; a plugin
+ * and every density positive and finite (its own screened outputs of the
+ * step before, and its kinematics, tested there), so the plugin may leave
+ * out its own screen of them. A host that cannot say so leaves the flag off; a plugin
  * may ignore it (1.0 and 1.1 plugins do). The host screens the outputs
  * (stress, state, wave speeds, tangent) whatever the flag. */
 #define TALUS_BATCH_INPUTS_FINITE 4u

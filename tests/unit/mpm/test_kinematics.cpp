@@ -257,8 +257,10 @@ TEST(Kinematics, ANonFiniteInputIsReported) {
 // shears engineering, computed here with Eigen's double contraction; and
 // every instruction set against the scalar code (a block of one point)
 // bit for bit, at counts below, at and past a pack and a plugin batch.
-// Each value is the sum of a few products of order 1e5 * 0.05 * V: 1e-13
-// of that scale bounds the different order of the operations.
+// Each increment is the sum of a few products of order 1e5 * 0.05 * V: 1e-13
+// of that scale bounds the different order of the operations; the sum's
+// last rounding is at most an ulp of the accumulated work (|work| <= 10 +
+// the increment), which 1e-15 * 10 covers.
 TEST(Kinematics, StressWorkBlockMatchesItsDefinitionOnEveryInstructionSet) {
     for (std::size_t n : {1u, 7u, 8u, 13u, 128u}) {
         auto make = [&] {
