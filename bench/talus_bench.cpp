@@ -187,8 +187,8 @@ int main(int argc, char **argv) {
     if (talus::MpiSession::launched_ranks() > 1) mpi.emplace(&argc, &argv);
     const talus::Comm comm = talus::Comm::world();
     const bool rank0 = comm.rank() == 0;
-    // 25 steps: the particle re-sort period, so every timed window pays
-    // for exactly one sort.
+    // 25 steps: the block hardly moves in them, so no re-sort falls in the
+    // window (docs/performance.md, "When to re-sort", gives its cost).
     int steps = 25, repeat = 3;
     std::vector<int> thread_counts{0}; // 0: OpenMP's default
     bool profile = false;

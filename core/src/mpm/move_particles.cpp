@@ -27,9 +27,9 @@ bool Domain::contains(const ParticleSet &s, std::size_t p, int dim) const {
 
 using Partial = StepEndBlocks::Partial;
 
-void Partial::saw(std::size_t p, std::uint32_t cell) {
+void Partial::saw(std::size_t p, std::uint32_t cell, std::uint32_t far) {
     if (last != kNone && p == last + 1) {
-        if (cell < last_cell) ++descents;
+        if (Ordering::far_below(cell, last_cell, far)) ++descents;
     } else if (first == kNone) {
         first = p;
         first_cell = cell;
@@ -38,7 +38,7 @@ void Partial::saw(std::size_t p, std::uint32_t cell) {
     last_cell = cell;
 }
 
-void Partial::merge(const Partial &o) {
+void Partial::merge(const Partial &o, std::uint32_t far) {
     speed = std::max(speed, o.speed);
     depth = std::max(depth, o.depth);
     outside += o.outside;
@@ -46,7 +46,8 @@ void Partial::merge(const Partial &o) {
     held += o.held;
     descents += o.descents;
     if (o.first == kNone) return;
-    if (last != kNone && o.first == last + 1 && o.first_cell < last_cell) ++descents;
+    if (last != kNone && o.first == last + 1 && Ordering::far_below(o.first_cell, last_cell, far))
+        ++descents;
     if (first == kNone) {
         first = o.first;
         first_cell = o.first_cell;
@@ -138,8 +139,8 @@ void end_block(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &g
         moved += sl != mark.slab[p] ? 1 : 0;
         mark.slab[p] = sl;
         mark.cell[p] = static_cast<std::uint32_t>(ci);
-        // Particles in a lower cell than their predecessor in memory.
-        r.saw(p, static_cast<std::uint32_t>(ci));
+        // Particles far below their predecessor in the cell order.
+        r.saw(p, static_cast<std::uint32_t>(ci), order.far());
     }
     r.speed = speed;
     r.depth = depth;
@@ -278,9 +279,10 @@ end_packs(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &geo, c
     }
     // Partial::saw over the points done, from the cells just written.
     const std::uint32_t *cell = mark.cell + begin;
+    const std::uint32_t far = order.far();
     long descents = 0;
     for (std::size_t j = 1; j < k; ++j)
-        descents += cell[j] < cell[j - 1] ? 1 : 0;
+        descents += Ordering::far_below(cell[j], cell[j - 1], far) ? 1 : 0;
     r.descents += descents;
     r.first = begin;
     r.first_cell = cell[0];
@@ -354,11 +356,11 @@ StepEnd StepEndBlocks::finish() {
     for (const std::vector<Partial> &set : partials_) {
         Partial part;
         for (const Partial &b : set)
-            part.merge(b);
+            part.merge(b, order_->far());
         // Sets are counted apart (no descent across two sets' arrays): the
         // set's range is forgotten before it joins the total.
         part.first = part.last = Partial::kNone;
-        total.merge(part);
+        total.merge(part, order_->far());
     }
     order_->marked(total.moved, static_cast<double>(total.descents));
     return {total.speed, total.held, total.depth, total.outside};

@@ -49,16 +49,17 @@ class StepEndBlocks {
   public:
     // Partial results of one block of points: the maximum speed, the
     // points held at a closed face, those outside, those that changed slab,
-    // and the first and last point with their cells (descents within the
-    // block are counted as it runs, those across blocks when they merge).
+    // and the first and last point with their cells (descents, by more
+    // than Ordering::far() cells, within the block are counted as it runs,
+    // those across blocks when they merge).
     struct Partial {
         static constexpr std::size_t kNone = static_cast<std::size_t>(-1);
         double speed = 0.0, depth = 0.0;
         long outside = 0, moved = 0, held = 0, descents = 0;
         std::size_t first = kNone, last = kNone;
         std::uint32_t first_cell = 0, last_cell = 0;
-        void saw(std::size_t p, std::uint32_t cell);
-        void merge(const Partial &o);
+        void saw(std::size_t p, std::uint32_t cell, std::uint32_t far);
+        void merge(const Partial &o, std::uint32_t far);
     };
 
     // `block`: the points per block() call (the last of a set may be

@@ -20,6 +20,12 @@ Ordering::Ordering(const GridGeometry &geo, std::size_t n_sets)
         if (geo.cells[static_cast<std::size_t>(d)] > geo.cells[static_cast<std::size_t>(axis_)])
             axis_ = d;
     n_slabs_ = std::max(1, geo.cells[static_cast<std::size_t>(axis_)] / kWidth);
+    // A row (2D) or plane (3D) of the cell order: cell_index's stride
+    // along the last axis.
+    std::uint64_t stride = 1;
+    for (int d = 0; d + 1 < dim; ++d)
+        stride *= static_cast<std::uint64_t>(geo.cells[static_cast<std::size_t>(d)]);
+    far_ = static_cast<std::uint32_t>(std::min<std::uint64_t>(2 * stride, kFarCap));
 }
 
 void Ordering::prepare(std::vector<ParticleSet> &sets, double threshold) {

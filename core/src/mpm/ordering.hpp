@@ -38,7 +38,18 @@ class Ordering {
     }
 
     // Re-sorts every set by cell if more than `threshold` of the particles
-    // are out of cell order (0: never), then bins them by slab.
+    // are far out of cell order (0: never), then bins them by slab.
+    //
+    // Far: in a cell more than far() cells below its predecessor's in
+    // memory. A particle a row or so out of place still finds its node
+    // records in the cache its predecessors filled (P2G and G2P read a
+    // cell's nodes and the rows, or planes, on either side), so only the
+    // descents past that window are the decay a sort repairs. Counting
+    // every descent sorted a flowing body at almost every step, where
+    // particles cross cells all the time: a spinning disk of 1.3M
+    // particles (2D) spent 36 % of its run re-sorting, and ran 1.45x as
+    // long as it did without re-sorts (docs/performance.md, "When to
+    // re-sort").
     void prepare(std::vector<ParticleSet> &sets, double threshold);
     // Sorts every set by cell now.
     void sort(std::vector<ParticleSet> &sets);
@@ -50,12 +61,20 @@ class Ordering {
         std::uint32_t *cell;
     };
     Marks marks(std::size_t si, std::size_t n);
-    // After that pass: how many particles changed slab, and how many sit in
-    // a lower cell than their predecessor in memory (the decay of the sort).
+    // After that pass: how many particles changed slab, and how many sit
+    // far below their predecessor in the cell order (the decay of the sort).
     void marked(long changed_slab, double out_of_order) {
         slabs_changed_ = changed_slab > 0;
         out_of_order_ = out_of_order;
     }
+    // The window of the decay: two rows (2D) or planes (3D) of the cell
+    // order, at most kFarCap cells.
+    std::uint32_t far() const { return far_; }
+    static constexpr std::uint32_t kFarCap = 1u << 14; // 1 MiB of 64-byte node records
+    static bool far_below(std::uint32_t cell, std::uint32_t before, std::uint32_t far) {
+        return std::uint64_t{cell} + far < before;
+    }
+
     // Particles were removed or moved: slabs are recomputed at the next bin.
     void invalidate();
 
@@ -70,6 +89,7 @@ class Ordering {
     void bin(const std::vector<ParticleSet> &sets);
     GridGeometry geo_;
     int axis_ = 0, n_slabs_ = 1;
+    std::uint32_t far_ = 0;
     std::vector<std::vector<std::uint32_t>> order_;    // per set: particle indices by slab
     std::vector<std::vector<std::size_t>> slab_begin_; // per set: n_slabs + 1 offsets
     std::vector<std::vector<std::int32_t>> slab_of_;   // per set, per particle

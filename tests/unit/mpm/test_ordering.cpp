@@ -137,4 +137,20 @@ TEST(Ordering, SortPutsParticlesInCellOrderStablyWithEveryColumnTheirOwn2D) { ch
 
 TEST(Ordering, SortPutsParticlesInCellOrderStablyWithEveryColumnTheirOwn3D) { check_sorted(3, 5); }
 
+// The decay that triggers a re-sort counts descents by more than far()
+// cells: two rows (2D) or planes (3D) of the cell order, capped at 2^14
+// cells (1 MiB of node records).
+TEST(Ordering, FarIsTwoRowsOrPlanesOfTheCellOrderAtMostTheCap) {
+    EXPECT_EQ(Ordering(geometry(2), 1).far(), 2u * 12u);
+    EXPECT_EQ(Ordering(geometry(3), 1).far(), 2u * 12u * 9u);
+    GridGeometry wide = geometry(3);
+    wide.cells = {300, 200, 10};
+    EXPECT_EQ(Ordering(wide, 1).far(), 16384u);
+    EXPECT_TRUE(Ordering::far_below(0, 25, 24));
+    EXPECT_FALSE(Ordering::far_below(1, 25, 24));
+    EXPECT_FALSE(Ordering::far_below(30, 25, 24));
+    // No wrap-around near the largest cell index.
+    EXPECT_FALSE(Ordering::far_below(0xffffffffu, 0u, 24));
+}
+
 } // namespace

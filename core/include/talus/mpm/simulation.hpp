@@ -51,9 +51,11 @@ ResourceEstimate estimate_resources(const Scenario &scenario);
 struct SolverOptions {
     int threads = 0;      // 0: OpenMP's default
     int batch_size = 128; // points per plugin call
-    // Particles are re-sorted by cell when more than this fraction is out of
-    // cell order (checked every step at no extra pass), so that neighbours
-    // on the grid stay neighbours in memory; 0 disables sorting.
+    // Particles are re-sorted by cell when more than this fraction is far
+    // out of cell order (more than two rows or planes of cells below the
+    // particle before it in memory; checked every step at no extra pass),
+    // so that neighbours on the grid stay neighbours in memory; 0 disables
+    // sorting.
     double sort_disorder = 0.01;
     // The ranks the run is spread over (docs/mpi.md): each holds the
     // particles of its part of the grid. With more than one, step(),
