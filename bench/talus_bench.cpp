@@ -122,6 +122,22 @@ std::string block_yaml(int dim, int nx, int ny, int nz, int ppc, double h,
         material == kElastic ? "" : ", initial_stress: {geostatic: {k0: 0.5}}", floor, g, solver);
 }
 
+// A linear_elastic disk spinning at 20 rad/s about its centre, no gravity,
+// no boundary: at its rim particles cross a cell every 30 steps or so, so
+// particles change cell and slab at every step, and the order in memory
+// decays as in a flowing body (the re-sort's rule and the slab binning at
+// work: docs/performance.md, "When to re-sort"). 2D: 1M particles.
+std::string spinning_disk_yaml() {
+    return fmt::format("talus: 1\ndimension: 2\n"
+                       "grid: {{origin: [0, 0], size: [2, 2], cell: 0.002}}\n"
+                       "materials:\n  solid: {}\n"
+                       "groups:\n  disk: {{material: solid, particles_per_cell: 2, shape: "
+                       "{{sphere: {{center: [1, 1], radius: 0.56}}}}, angular_velocity: 20.0}}\n"
+                       "solver: {{{}}}\n"
+                       "time: {{end: 1.0}}\n",
+                       kElastic, kUslFlip);
+}
+
 // The machine's memory bandwidth, the roof of docs/performance.md: a
 // read-only sum and the STREAM triad a = b + s c over arrays far larger
 // than the caches, with the same threads as the cases (static shares, each
@@ -249,6 +265,7 @@ int main(int argc, char **argv) {
         {"3d_block_bspline2_linear_elastic", 3, block_yaml(3, 50, 50, 50, 2, 0.02)},
         {"3d_block_odd_bspline2_linear_elastic", 3, block_yaml(3, 49, 51, 53, 2, 0.02)},
         {"2d_block_bspline2_linear_elastic", 2, block_yaml(2, 500, 500, 0, 2, 0.002)},
+        {"2d_disk_spinning_linear_elastic", 2, spinning_disk_yaml()},
         // The other schemes, transfers and kernels, 2D at a quarter of the
         // size and one 3D: each takes its own path through the cycle.
         {"2d_block_musl_apic_bspline2", 2,
