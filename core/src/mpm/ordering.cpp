@@ -25,7 +25,8 @@ Ordering::Ordering(const GridGeometry &geo, std::size_t n_sets)
     std::uint64_t stride = 1;
     for (int d = 0; d + 1 < dim; ++d)
         stride *= static_cast<std::uint64_t>(geo.cells[static_cast<std::size_t>(d)]);
-    far_ = static_cast<std::uint32_t>(std::min<std::uint64_t>(2 * stride, kFarCap));
+    far_ = static_cast<std::uint32_t>(
+        std::min<std::uint64_t>(2 * stride, std::numeric_limits<std::uint32_t>::max()));
 }
 
 void Ordering::prepare(std::vector<ParticleSet> &sets, double threshold) {

@@ -68,9 +68,11 @@ class Ordering {
         out_of_order_ = out_of_order;
     }
     // The window of the decay: two rows (2D) or planes (3D) of the cell
-    // order, at most kFarCap cells.
+    // order. Not capped in bytes: on a large 3D grid a cap below a plane
+    // would count every crossing of a plane again, and a particle a plane
+    // out of place adds only the nodes of one plane of its stencil to what
+    // its neighbours in memory read.
     std::uint32_t far() const { return far_; }
-    static constexpr std::uint32_t kFarCap = 1u << 14; // 1 MiB of 64-byte node records
     static bool far_below(std::uint32_t cell, std::uint32_t before, std::uint32_t far) {
         return std::uint64_t{cell} + far < before;
     }

@@ -138,14 +138,13 @@ TEST(Ordering, SortPutsParticlesInCellOrderStablyWithEveryColumnTheirOwn2D) { ch
 TEST(Ordering, SortPutsParticlesInCellOrderStablyWithEveryColumnTheirOwn3D) { check_sorted(3, 5); }
 
 // The decay that triggers a re-sort counts descents by more than far()
-// cells: two rows (2D) or planes (3D) of the cell order, capped at 2^14
-// cells (1 MiB of node records).
-TEST(Ordering, FarIsTwoRowsOrPlanesOfTheCellOrderAtMostTheCap) {
+// cells: two rows (2D) or planes (3D) of the cell order, however large.
+TEST(Ordering, FarIsTwoRowsOrPlanesOfTheCellOrder) {
     EXPECT_EQ(Ordering(geometry(2), 1).far(), 2u * 12u);
     EXPECT_EQ(Ordering(geometry(3), 1).far(), 2u * 12u * 9u);
     GridGeometry wide = geometry(3);
     wide.cells = {300, 200, 10};
-    EXPECT_EQ(Ordering(wide, 1).far(), 16384u);
+    EXPECT_EQ(Ordering(wide, 1).far(), 2u * 300u * 200u);
     EXPECT_TRUE(Ordering::far_below(0, 25, 24));
     EXPECT_FALSE(Ordering::far_below(1, 25, 24));
     EXPECT_FALSE(Ordering::far_below(30, 25, 24));
