@@ -6,9 +6,12 @@
 // function of the particle's id and the value's place in its row, so that
 // a value left behind, moved twice or taken from a neighbour is seen.
 #include "ordering.hpp"
+#include "parallel.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <random>
@@ -136,6 +139,42 @@ void check_sorted(int dim, std::uint32_t state_size) {
 TEST(Ordering, SortPutsParticlesInCellOrderStablyWithEveryColumnTheirOwn2D) { check_sorted(2, 0); }
 
 TEST(Ordering, SortPutsParticlesInCellOrderStablyWithEveryColumnTheirOwn3D) { check_sorted(3, 5); }
+
+// Binning by slab (Ordering::prepare without a sort): each slab's list
+// holds exactly the particles whose cell lies in it, in memory order, for
+// a small set and a large one, with two threads.
+TEST(Ordering, BinsEveryParticleIntoItsSlabInMemoryOrder) {
+    const int threads = talus::par::max_threads();
+    for (const std::size_t n : {std::size_t{5000}, std::size_t{150001}}) {
+        GridGeometry g = geometry(2);
+        g.cells = {64, 40, 1}; // 16 slabs of 4 cells along x
+        std::vector<ParticleSet> sets;
+        sets.push_back(particles(g, n, 0, 9));
+        talus::par::set_threads(2);
+        Ordering order(g, sets.size());
+        order.prepare(sets, 0.0);
+        const ParticleSet &s = sets[0];
+        std::vector<int> seen(s.n, 0);
+        ASSERT_EQ(order.n_slabs(), 16);
+        for (int slab = 0; slab < order.n_slabs(); ++slab) {
+            const Ordering::Range r = order.slab(0, slab);
+            ASSERT_GT(r.end - r.begin, 0);
+            for (const std::uint32_t *k = r.begin; k != r.end; ++k) {
+                ASSERT_LT(*k, s.n);
+                if (k != r.begin) {
+                    ASSERT_GT(*k, k[-1]) << "slab " << slab << " out of memory order";
+                }
+                const int cell = static_cast<int>(
+                    std::floor(s.x[static_cast<std::size_t>(order.axis())][*k] * g.inv_h));
+                ASSERT_EQ(std::min(cell / 4, 15), slab) << "particle " << *k;
+                ++seen[*k];
+            }
+        }
+        for (std::size_t p = 0; p < s.n; ++p)
+            ASSERT_EQ(seen[p], 1) << "particle " << p << " binned " << seen[p] << " times";
+    }
+    talus::par::set_threads(threads);
+}
 
 // The decay that triggers a re-sort counts descents by more than far()
 // cells: two rows (2D) or planes (3D) of the cell order, however large.
