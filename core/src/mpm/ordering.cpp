@@ -137,9 +137,10 @@ struct KeyRange {
 // count, one to place, in memory order so that particles of a cell keep
 // theirs), O(n + cells), with the keys computed in parallel: with the
 // permutation, a 2D sort of 1M points at two threads took 63-66 ms against
-// 70-79 (best of five, three rounds). Where the occupied cells outnumber the particles
-// (a few particles spread over a large grid) the counts would cost more
-// than they save, and std::stable_sort orders them instead. Both are stable
+// 70-79 (best of five, three rounds). Where the occupied cells outnumber
+// the particles (a few particles spread over a large grid) the counts
+// would cost more than they save, and std::stable_sort orders them
+// instead. Both are stable
 // sorts by the same key, so they give the same permutation.
 void Ordering::sort(std::vector<ParticleSet> &sets) {
     std::vector<std::uint32_t> key, from, count;

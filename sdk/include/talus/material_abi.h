@@ -270,9 +270,9 @@ typedef struct talus_create_args {
  * finite -- strain_increment, F_start, F_end, stress_start, state_start --
  * and every density positive and finite (its own screened outputs of the
  * step before, and its kinematics, tested there), so the plugin may leave
- * out its own screen of them. A host that cannot say so leaves the flag off; a plugin
- * may ignore it (1.0 and 1.1 plugins do). The host screens the outputs
- * (stress, state, wave speeds, tangent) whatever the flag. */
+ * out its own screen of them. A host that cannot say so leaves the flag
+ * off; a plugin may ignore it (1.0 and 1.1 plugins do). The host screens
+ * the outputs (stress, state, wave speeds, tangent) whatever the flag. */
 #define TALUS_BATCH_INPUTS_FINITE 4u
 
 /* Arrays hold n_points consecutive records: point i's strain increment is

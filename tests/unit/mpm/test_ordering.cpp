@@ -187,8 +187,10 @@ TEST(Ordering, FarIsTwoRowsOrPlanesOfTheCellOrder) {
     EXPECT_TRUE(Ordering::far_below(0, 25, 24));
     EXPECT_FALSE(Ordering::far_below(1, 25, 24));
     EXPECT_FALSE(Ordering::far_below(30, 25, 24));
-    // No wrap-around near the largest cell index.
-    EXPECT_FALSE(Ordering::far_below(0xffffffffu, 0u, 24));
+    // No wrap-around near the largest cell index: cell + far past 2^32
+    // would come out small in 32 bits and count as far below.
+    EXPECT_FALSE(Ordering::far_below(0xfffffff0u, 0xffffffffu, 24));
+    EXPECT_TRUE(Ordering::far_below(0xfffffff0u - 25, 0xffffffffu, 24));
 }
 
 } // namespace
