@@ -2,7 +2,7 @@
 // line per case. Measures; asserts nothing (see bench/README.md).
 //
 //   talus_bench [--steps N] [--repeat R] [--case NAME] [--threads T[,T...]] [--busy N]
-//               [--profile]
+//               [--profile] [--all-nodes]
 //   mpirun -np N talus_bench ...   (the cases spread over N ranks; rank 0 prints)
 #include <talus/input/scenario_yaml.hpp>
 #include <talus/input/yaml_input.hpp>
@@ -207,7 +207,7 @@ int main(int argc, char **argv) {
     // window (docs/performance.md, "When to re-sort", gives its cost).
     int steps = 25, repeat = 3;
     std::vector<int> thread_counts{0}; // 0: OpenMP's default
-    bool profile = false;
+    bool profile = false, all_nodes = false;
     int busy = 0;
     std::string only;
     for (int i = 1; i < argc; ++i) {
@@ -242,6 +242,8 @@ int main(int argc, char **argv) {
             only = next();
         else if (a == "--profile")
             profile = true;
+        else if (a == "--all-nodes")
+            all_nodes = true;
         else if (a == "--busy") {
             busy = std::atoi(next().c_str());
             if (busy < 0) {
@@ -250,7 +252,7 @@ int main(int argc, char **argv) {
             }
         } else {
             std::fprintf(stderr, "usage: talus_bench [--steps N] [--repeat R] [--case NAME] "
-                                 "[--threads T[,T...]] [--busy N] [--profile]\n");
+                                 "[--threads T[,T...]] [--busy N] [--profile] [--all-nodes]\n");
             return 2;
         }
     }
@@ -317,6 +319,7 @@ int main(int argc, char **argv) {
                 talus::SolverOptions so;
                 so.threads = threads;
                 so.comm = comm;
+                so.active_nodes_only = !all_nodes;
                 // Every run starts from the scenario's initial state: a
                 // continued run would time a different state each time (a
                 // Mohr-Coulomb block goes from 0.3 % to 97 % plastic points
@@ -328,6 +331,9 @@ int main(int argc, char **argv) {
                 std::size_t halo_bytes = 0, migration_bytes = 0;
                 std::array<double, talus::Simulation::kPhases> phases{};
                 double n = 0.0, particle_bytes = 0.0, rss = 0.0;
+                // The grid's nodes each timed step reset and updated, as a
+                // share of all (rank 0's).
+                double active_share = 0.0;
                 std::string isa;
                 for (int r = 0; r < repeat; ++r) {
                     talus::Simulation sim(sc, so);
@@ -340,8 +346,11 @@ int main(int argc, char **argv) {
                     // rank's end.
                     comm.barrier();
                     const auto t0 = std::chrono::steady_clock::now();
-                    for (int s = 0; s < steps; ++s)
+                    for (int s = 0; s < steps; ++s) {
                         sim.step(1.0);
+                        active_share += static_cast<double>(sim.active_nodes()) /
+                                        static_cast<double>(sim.grid_nodes());
+                    }
                     const double sec =
                         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
                             .count();
@@ -416,14 +425,16 @@ int main(int argc, char **argv) {
                             "\"particle_steps_per_second\": %.4g, "
                             "\"median_particle_steps_per_second\": %.4g, "
                             "\"particle_bytes\": %.0f, \"max_rss_bytes_per_particle\": %.0f, "
-                            "\"barriers_per_step\": %.1f, \"halo_seconds_per_step\": %.3g, "
+                            "\"barriers_per_step\": %.1f, \"active_node_share\": %.3f, "
+                            "\"halo_seconds_per_step\": %.3g, "
                             "\"migration_seconds_per_step\": %.3g, "
                             "\"halo_bytes_per_rank_step\": %.0f, "
                             "\"migration_bytes_per_rank_step\": %.0f, \"phase_shares\": {%s}}\n",
                             c.name.c_str(), c.dim, n, steps, comm.size(), used, isa.c_str(),
                             kMaterialPath, busy, best, n * steps / best, n * steps / median,
-                            particle_bytes / n, rss / n, barriers, halo_s, mig_s, halo_b, mig_b,
-                            shares.c_str());
+                            particle_bytes / n, rss / n, barriers,
+                            active_share / (static_cast<double>(repeat) * steps), halo_s, mig_s,
+                            halo_b, mig_b, shares.c_str());
                 std::fflush(stdout);
             }
     } catch (const std::exception &e) {

@@ -48,7 +48,7 @@ void Boundary::apply(const Grid &grid, double *field, std::size_t offset, const 
         if (fc.type == FaceType::free) continue;
         const std::size_t axis = static_cast<std::size_t>(f / 2);
         const double sign = (f % 2 == 0) ? -1.0 : 1.0; // outward normal
-        for (std::uint32_t i : grid.face_nodes[static_cast<std::size_t>(f)]) {
+        for_each_node(grid, grid.face_nodes[static_cast<std::size_t>(f)], [&](std::size_t i) {
             double *v = V(i);
             if (fc.type == FaceType::fixed) {
                 for (int d = 0; d < dim_; ++d)
@@ -57,9 +57,9 @@ void Boundary::apply(const Grid &grid, double *field, std::size_t offset, const 
                 v[axis] = 0.0;
             } else {
                 const double vn = sign * v[axis];
-                if (vn <= 0.0) continue; // separating: no contact
+                if (vn <= 0.0) return; // separating: no contact
                 v[axis] = 0.0;
-                if (fc.friction == 0.0) continue;
+                if (fc.friction == 0.0) return;
                 double vt2 = 0.0;
                 for (int d = 0; d < dim_; ++d)
                     if (static_cast<std::size_t>(d) != axis) vt2 += v[d] * v[d];
@@ -68,14 +68,14 @@ void Boundary::apply(const Grid &grid, double *field, std::size_t offset, const 
                 for (int d = 0; d < dim_; ++d)
                     if (static_cast<std::size_t>(d) != axis) v[d] *= scale;
             }
-        }
+        });
     }
     for (const Prescribed &p : prescribed_)
         for (int d = 0; d < dim_; ++d)
             if (const auto &fn = p.velocity.c[static_cast<std::size_t>(d)]) {
                 const double v = (*fn)(t);
                 for (std::uint32_t i : p.nodes)
-                    V(i)[d] = v;
+                    if (grid.active().contains(grid.local(i))) V(i)[d] = v;
             }
     // Particle fixities act on the grid too: every node a fixed particle
     // reaches moves as prescribed, so the body attached to those particles
@@ -92,13 +92,18 @@ void Boundary::apply(const Grid &grid, double *field, std::size_t offset, const 
                 on[k][d] = true;
             }
     const int D = dim_;
-    par::for_each(grid.n_nodes, [&](std::size_t i) {
-        std::uint32_t mask = static_cast<std::uint32_t>(fixity[node::kRecord * i + node::kFixity]);
-        while (mask) {
-            const std::size_t k = static_cast<std::size_t>(__builtin_ctz(mask));
-            mask &= mask - 1;
-            for (int d = 0; d < D; ++d)
-                if (on[k][d]) V(i)[d] = value[k][d];
+    const SlotBox &b = grid.active();
+    par::for_each(b.rows(), [&](std::size_t r) {
+        const std::size_t first = b.row_begin(r, grid.geo.extent);
+        for (std::size_t i = first; i < first + b.row_length(); ++i) {
+            std::uint32_t mask =
+                static_cast<std::uint32_t>(fixity[node::kRecord * i + node::kFixity]);
+            while (mask) {
+                const std::size_t k = static_cast<std::size_t>(__builtin_ctz(mask));
+                mask &= mask - 1;
+                for (int d = 0; d < D; ++d)
+                    if (on[k][d]) V(i)[d] = value[k][d];
+            }
         }
     });
 }

@@ -25,26 +25,38 @@ class Boundary {
     Boundary(const Scenario &sc, const Conditions &c, const Grid &grid, double t0,
              const Comm &comm = Comm::serial());
 
-    // Applies every condition at (the run's) time t to the velocity at `offset` of the
-    // node records `field` (Grid::vel at node::kVelocity or kEndVelocity,
-    // or another field laid out the same way). `fixity` is Grid::acc: its
-    // node::kFixity slot says which fixities reach a node.
+    // Applies every condition at (the run's) time t to the velocity at
+    // `offset` of the node records `field` (Grid::vel at node::kVelocity or
+    // kEndVelocity, or another field laid out the same way), at the nodes
+    // of the grid's active box (Grid::active): the step's kernels read and
+    // write no other. `fixity` is Grid::acc: its node::kFixity slot says
+    // which fixities reach a node.
     void apply(const Grid &grid, double *field, std::size_t offset, const double *fixity,
                double t) const;
-    // Calls f(slot) for every node a face condition or a prescribed velocity
-    // may change (fixity nodes excluded), some more than once.
+    // Calls f(slot) for every node of the active box a face condition or a
+    // prescribed velocity may change (fixity nodes excluded), some more
+    // than once.
     template <class F>
     void for_each_constrained_node(const Grid &grid, F &&f) const {
         for (int face = 0; face < 6; ++face)
             if (faces_[static_cast<std::size_t>(face)].type != FaceType::free)
-                for (std::uint32_t i : grid.face_nodes[static_cast<std::size_t>(face)])
-                    f(i);
+                for_each_node(grid, grid.face_nodes[static_cast<std::size_t>(face)], f);
         for (const Prescribed &p : prescribed_)
             for (std::uint32_t i : p.nodes)
-                f(i);
+                if (grid.active().contains(grid.local(i))) f(i);
     }
 
   private:
+    // f(slot) for the nodes of `box` in the active box, row by row.
+    template <class F>
+    static void for_each_node(const Grid &grid, const SlotBox &box, F &&f) {
+        const SlotBox b = box.cut(grid.active());
+        for (std::size_t r = 0; r < b.rows(); ++r) {
+            const std::size_t first = b.row_begin(r, grid.geo.extent);
+            for (std::size_t i = first; i < first + b.row_length(); ++i)
+                f(i);
+        }
+    }
     struct Prescribed {
         std::vector<std::uint32_t> nodes;
         ComponentFunctions velocity;

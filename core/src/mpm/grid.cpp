@@ -66,6 +66,7 @@ Grid::Grid(int dim, const std::array<double, 3> &origin, const std::array<double
     }
     acc.assign(node::kRecord * n_nodes, 0.0);
     vel.assign(node::kRecord * n_nodes, 0.0);
+    active_ = written_ = all();
     // Sum over the stencil of w (x_i - x_p)(x_i - x_p)^T is h^2/4 I for the
     // quadratic and h^2/3 I for the cubic B-spline (Jiang et al. 2015).
     if (shape == ShapeKind::bspline2) geo.affine_dinv = 4.0 / (h * h);
@@ -75,29 +76,62 @@ Grid::Grid(int dim, const std::array<double, 3> &origin, const std::array<double
     // outside the face (the node on the face has a function vanishing there
     // and stays free), for the tent-based kernels the face node and beyond.
     const int layer = face_layer(shape);
-    for (std::size_t i = 0; i < n_nodes; ++i) {
-        const std::array<int, 3> ijk = geo.global(i);
-        for (std::size_t d = 0; d < static_cast<std::size_t>(dim); ++d) {
-            if (ijk[d] <= -layer) face_nodes[2 * d].push_back(static_cast<std::uint32_t>(i));
-            if (ijk[d] >= geo.cells[d] + layer)
-                face_nodes[2 * d + 1].push_back(static_cast<std::uint32_t>(i));
-        }
+    for (std::size_t d = 0; d < static_cast<std::size_t>(dim); ++d) {
+        // Global node numbers <= -layer, and >= cells + layer.
+        const int e = geo.extent[d];
+        SlotBox below = all(), above = all();
+        below.hi[d] = std::clamp(-layer - geo.first[d] + 1, 0, e);
+        above.lo[d] = std::clamp(geo.cells[d] + layer - geo.first[d], 0, e);
+        face_nodes[2 * d] = below;
+        face_nodes[2 * d + 1] = above;
     }
+    for (SlotBox &f : face_nodes)
+        if (f.empty()) f = SlotBox{};
 }
 
-void Grid::reset() {
-    // Parallel: on a large grid this is tens of megabytes every step.
-    const std::size_t chunks = 64, len = acc.size();
-    par::for_each(chunks, [&](std::size_t c) {
-        std::fill(acc.begin() + static_cast<std::ptrdiff_t>(len * c / chunks),
-                  acc.begin() + static_cast<std::ptrdiff_t>(len * (c + 1) / chunks), 0.0);
+SlotBox Grid::reach(const std::array<int, 3> &cell_lo, const std::array<int, 3> &cell_hi) const {
+    SlotBox b;
+    for (std::size_t d = 0; d < 3; ++d) {
+        if (static_cast<int>(d) >= geo.dim) {
+            b.hi[d] = 1;
+            continue;
+        }
+        // In 64 bits: an empty range comes as INT_MAX .. INT_MIN.
+        const long lo = long{cell_lo[d]} - kGhostLayers - geo.first[d];
+        const long hi = long{cell_hi[d]} + 1 + kGhostLayers + 1 - geo.first[d];
+        b.lo[d] = static_cast<int>(std::clamp(lo, 0L, long{geo.extent[d]}));
+        b.hi[d] = static_cast<int>(std::clamp(hi, long{b.lo[d]}, long{geo.extent[d]}));
+    }
+    return b;
+}
+
+SlotBox Grid::all() const {
+    SlotBox b;
+    b.hi = geo.extent;
+    return b;
+}
+
+void Grid::reset(const SlotBox &active) {
+    // Parallel, row by row: on a large grid this is tens of megabytes
+    // every step.
+    const SlotBox w = written_;
+    const std::size_t len = node::kRecord * w.row_length();
+    par::for_each(w.rows(), [&](std::size_t r) {
+        std::fill_n(acc.begin() +
+                        static_cast<std::ptrdiff_t>(node::kRecord * w.row_begin(r, geo.extent)),
+                    len, 0.0);
     });
+    active_ = written_ = active;
 }
 
 void Grid::clear_momentum() {
-    for (std::size_t i = 0; i < n_nodes; ++i)
-        for (std::size_t d = 0; d < static_cast<std::size_t>(geo.dim); ++d)
-            acc[node::kRecord * i + node::kMomentum + d] = 0.0;
+    const SlotBox &b = active_;
+    for (std::size_t r = 0; r < b.rows(); ++r) {
+        const std::size_t first = b.row_begin(r, geo.extent);
+        for (std::size_t i = first; i < first + b.row_length(); ++i)
+            for (std::size_t d = 0; d < static_cast<std::size_t>(geo.dim); ++d)
+                acc[node::kRecord * i + node::kMomentum + d] = 0.0;
+    }
 }
 
 double Grid::mass() const {

@@ -88,14 +88,50 @@ struct CacheLineAllocator {
 };
 using NodeRecords = std::vector<double, CacheLineAllocator<double>>;
 
+// A box of local node slots, [lo, hi) per axis, walked as rows: runs of
+// consecutive slots along axis 0 (slot = i + e0 (j + e1 k) for the
+// grid's extent e).
+struct SlotBox {
+    std::array<int, 3> lo{0, 0, 0}, hi{0, 0, 0};
+    bool empty() const { return hi[0] <= lo[0] || hi[1] <= lo[1] || hi[2] <= lo[2]; }
+    std::size_t nodes() const { return empty() ? 0 : rows() * row_length(); }
+    std::size_t rows() const {
+        return empty() ? 0
+                       : static_cast<std::size_t>(hi[1] - lo[1]) *
+                             static_cast<std::size_t>(hi[2] - lo[2]);
+    }
+    std::size_t row_length() const { return static_cast<std::size_t>(hi[0] - lo[0]); }
+    bool contains(const std::array<int, 3> &ijk) const {
+        return ijk[0] >= lo[0] && ijk[0] < hi[0] && ijk[1] >= lo[1] && ijk[1] < hi[1] &&
+               ijk[2] >= lo[2] && ijk[2] < hi[2];
+    }
+    SlotBox cut(const SlotBox &o) const {
+        SlotBox b;
+        for (std::size_t d = 0; d < 3; ++d) {
+            b.lo[d] = std::max(lo[d], o.lo[d]);
+            b.hi[d] = std::max(b.lo[d], std::min(hi[d], o.hi[d]));
+        }
+        return b;
+    }
+    // The first slot of row r (r < rows()) of a grid of `extent` nodes.
+    std::size_t row_begin(std::size_t r, const std::array<int, 3> &extent) const {
+        const std::size_t n1 = static_cast<std::size_t>(hi[1] - lo[1]);
+        const std::size_t j = static_cast<std::size_t>(lo[1]) + r % n1;
+        const std::size_t k = static_cast<std::size_t>(lo[2]) + r / n1;
+        return static_cast<std::size_t>(lo[0]) +
+               static_cast<std::size_t>(extent[0]) * (j + static_cast<std::size_t>(extent[1]) * k);
+    }
+};
+
 struct Grid {
     GridGeometry geo;
     std::size_t n_nodes = 0; // held: the owned cells' nodes and the ghost layers
     std::size_t n_cells = 0; // owned (owned_cell_index)
     NodeRecords acc, vel;    // node records, see node::
-    // Local slots of the nodes on or beyond each face (x-, x+, y-, y+, z-,
-    // z+) that carry the face's condition (face_layer of the kernel).
-    std::array<std::vector<std::uint32_t>, 6> face_nodes;
+    // The nodes on or beyond each face (x-, x+, y-, y+, z-, z+) that carry
+    // the face's condition (face_layer of the kernel): a box of slots each
+    // (empty where this rank holds none).
+    std::array<SlotBox, 6> face_nodes;
 
     // The domain [origin, origin + cells h] with kGhostLayers around it; on
     // one of several ranks, the nodes of its cells [box_lo, box_hi) with
@@ -104,15 +140,49 @@ struct Grid {
          ShapeKind shape);
     Grid(int dim, const std::array<double, 3> &origin, const std::array<double, 3> &size, double h,
          ShapeKind shape, const std::array<int, 3> &box_lo, const std::array<int, 3> &box_hi);
-    // Clears the P2G accumulators.
-    void reset();
-    // Clears the momentum slots alone (before MUSL's remap).
+    // The nodes the step's particles reach, for a step whose particles lie
+    // in the global cells lo..hi per axis (inclusive; their cells clamped
+    // into the domain, as GridGeometry::cell): a box every kernel's stencil
+    // from those cells stays in, cut to the held nodes. A particle in cell
+    // c reaches nodes c - 1 .. c + 2 at most (shape_functions.hpp: the
+    // quadratic and cubic B-splines and GIMP; the tents c .. c + 1); one
+    // on the domain's far face (xi = n, whose clamped cell is n - 1) up to
+    // c + 3 with the cubic B-spline. kGhostLayers (2) nodes either side of
+    // the cell's own two, c - 2 .. c + 3, cover both. An empty range (lo >
+    // hi: no particles) reaches no node.
+    SlotBox reach(const std::array<int, 3> &cell_lo, const std::array<int, 3> &cell_hi) const;
+    // Every held node.
+    SlotBox all() const;
+    // Clears the P2G accumulators for a step whose particles reach
+    // `active`: where the last step's did (every node before the first
+    // step), so that they are zero everywhere. The step's kernels then work
+    // within the active box alone (active()): the P2G sums land there, the
+    // grid update writes the velocities there and nowhere else. Outside it
+    // Grid::vel is left as it was and is not read (a particle reads only the
+    // nodes of its stencil).
+    void reset(const SlotBox &active);
+    void reset() { reset(all()); }
+    const SlotBox &active() const { return active_; }
+    // Local (i, j, k) of a slot.
+    std::array<int, 3> local(std::size_t slot) const {
+        const std::size_t ex = static_cast<std::size_t>(geo.extent[0]);
+        const std::size_t ey = static_cast<std::size_t>(geo.extent[1]);
+        return {static_cast<int>(slot % ex), static_cast<int>((slot / ex) % ey),
+                static_cast<int>(slot / (ex * ey))};
+    }
+    // Clears the momentum slots alone (before MUSL's remap), in the active box.
     void clear_momentum();
     // Total nodal mass.
     double mass() const;
     // Position of a node's Greville point, the point it stands for (the
     // clamped B-splines' nodes near a face sit between lattice points).
     std::array<double, 3> node_point(std::size_t slot, ShapeKind shape) const;
+
+  private:
+    // The nodes the current step's particles reach, and those the P2G
+    // accumulators may be non-zero in (the last active box; every node
+    // until the first reset).
+    SlotBox active_, written_;
 };
 
 } // namespace talus

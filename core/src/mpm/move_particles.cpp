@@ -45,6 +45,10 @@ void Partial::merge(const Partial &o, std::uint32_t far) {
     moved += o.moved;
     held += o.held;
     descents += o.descents;
+    for (std::size_t d = 0; d < 3; ++d) {
+        cell_lo[d] = std::min(cell_lo[d], o.cell_lo[d]);
+        cell_hi[d] = std::max(cell_hi[d], o.cell_hi[d]);
+    }
     if (o.first == kNone) return;
     if (last != kNone && o.first == last + 1 && Ordering::far_below(o.first_cell, last_cell, far))
         ++descents;
@@ -108,6 +112,11 @@ void end_block(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &g
     const double *c = s.c.data();
     double speed = r.speed, depth = r.depth;
     long outside = 0, held = 0, moved = 0;
+    int cell_lo[D], cell_hi[D];
+    for (int d = 0; d < D; ++d) {
+        cell_lo[d] = r.cell_lo[static_cast<std::size_t>(d)];
+        cell_hi[d] = r.cell_hi[static_cast<std::size_t>(d)];
+    }
     for (std::size_t p = begin; p < begin + count; ++p) {
         // The grid's normal velocity at a closed face is zero (clamped
         // basis), so the motion from the grid cannot carry a particle
@@ -130,6 +139,8 @@ void end_block(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &g
             v2 += v[d][p] * v[d][p];
             // The cell, and from it the slab (GridGeometry::cell).
             const int cd = GridGeometry::clamped_cell((xd - origin[d]) * inv_h, cells[d]);
+            cell_lo[d] = std::min(cell_lo[d], cd);
+            cell_hi[d] = std::max(cell_hi[d], cd);
             ci += static_cast<std::size_t>(cd) * stride;
             stride *= static_cast<std::size_t>(cells[d]);
             if (d == axis) sl = order.slab_of_cell(cd);
@@ -144,6 +155,10 @@ void end_block(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &g
     }
     r.speed = speed;
     r.depth = depth;
+    for (int d = 0; d < D; ++d) {
+        r.cell_lo[static_cast<std::size_t>(d)] = cell_lo[d];
+        r.cell_hi[static_cast<std::size_t>(d)] = cell_hi[d];
+    }
     r.outside += outside;
     r.held += held;
     r.moved += moved;
@@ -197,6 +212,12 @@ end_packs(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &geo, c
     // The arms of every select are vectors: with a scalar arm GCC 12
     // builds the result lane by lane, through branches.
     const V zero{}, one = zero + 1.0;
+    // The cells' range per axis, lane by lane (whole numbers in doubles).
+    V cell_lo[D], cell_hi[D];
+    for (int d = 0; d < D; ++d) {
+        cell_lo[d] = zero + static_cast<double>(geo.cells[static_cast<std::size_t>(d)]);
+        cell_hi[d] = zero - 1.0;
+    }
     std::size_t k = 0;
     for (; k + N <= count; k += N) {
         const std::size_t p = begin + k;
@@ -236,6 +257,8 @@ end_packs(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &geo, c
             xi = xi >= zero ? xi : zero;
             xi = xi >= last_cell[d] ? last_cell[d] : xi;
             const V cd = __builtin_convertvector(__builtin_convertvector(xi, I32), V);
+            cell_lo[d] = cd < cell_lo[d] ? cd : cell_lo[d];
+            cell_hi[d] = cd > cell_hi[d] ? cd : cell_hi[d];
             ci += cd * stride;
             stride *= static_cast<double>(geo.cells[static_cast<std::size_t>(d)]);
             if (d == axis) {
@@ -271,6 +294,12 @@ end_packs(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &geo, c
         std::memcpy(mark.cell + p, &cell, sizeof cell);
     }
     r.speed = speed_max;
+    for (int d = 0; d < D; ++d)
+        for (int i = 0; i < N; ++i) {
+            const std::size_t dd = static_cast<std::size_t>(d);
+            r.cell_lo[dd] = std::min(r.cell_lo[dd], static_cast<int>(cell_lo[d][i]));
+            r.cell_hi[dd] = std::max(r.cell_hi[dd], static_cast<int>(cell_hi[d][i]));
+        }
     for (int i = 0; i < N; ++i) {
         r.depth = std::max(r.depth, depth[i]);
         r.outside += static_cast<long>(outside[i]);
@@ -363,7 +392,10 @@ StepEnd StepEndBlocks::finish() {
         total.merge(part, order_->far());
     }
     order_->marked(total.moved, static_cast<double>(total.descents));
-    return {total.speed, total.held, total.depth, total.outside};
+    StepEnd end{total.speed, total.held, total.depth, total.outside};
+    end.cell_lo = total.cell_lo;
+    end.cell_hi = total.cell_hi;
+    return end;
 }
 
 StepEnd move_particles(std::vector<ParticleSet> &sets, const GridGeometry &geo,

@@ -13,6 +13,7 @@
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -35,6 +36,11 @@ struct StepEnd {
     long held = 0;          // positions put back onto a closed face
     double held_depth = 0.0;
     long outside = 0; // particles outside the domain (through a free face)
+    // The cells the particles are in, lo..hi per axis (inclusive; as
+    // GridGeometry::cell, clamped into the domain): where the next step's
+    // stencils reach (Grid::reach). lo > hi: no particles.
+    std::array<int, 3> cell_lo{kNoCell, kNoCell, kNoCell}, cell_hi{-1, -1, -1};
+    static constexpr int kNoCell = std::numeric_limits<int>::max();
 };
 
 // The step's end, block by block: begin() before the pass, block() for
@@ -49,7 +55,7 @@ class StepEndBlocks {
   public:
     // Partial results of one block of points: the maximum speed, the
     // points held at a closed face, those outside, those that changed slab,
-    // and the first and last point with their cells (descents, by more
+    // the cells they are in, and the first and last point with their cells (descents, by more
     // than Ordering::far() cells, within the block are counted as it runs,
     // those across blocks when they merge).
     struct Partial {
@@ -58,6 +64,8 @@ class StepEndBlocks {
         long outside = 0, moved = 0, held = 0, descents = 0;
         std::size_t first = kNone, last = kNone;
         std::uint32_t first_cell = 0, last_cell = 0;
+        std::array<int, 3> cell_lo{StepEnd::kNoCell, StepEnd::kNoCell, StepEnd::kNoCell},
+            cell_hi{-1, -1, -1};
         void saw(std::size_t p, std::uint32_t cell, std::uint32_t far);
         void merge(const Partial &o, std::uint32_t far);
     };

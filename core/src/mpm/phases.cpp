@@ -209,6 +209,10 @@ void Simulation::Impl::step_ended(const StepEnd &mine) {
         end = StepEnd{peak[0], counts[0], peak[1], counts[1]};
     }
     max_speed = end.max_speed;
+    // This rank's cells (a removal below only shrinks them). On several
+    // ranks the halo sums land on nodes beyond a rank's particles and
+    // migration brings particles from elsewhere: every node then.
+    if (!comm.distributed()) particle_cells = {{mine.cell_lo, mine.cell_hi}};
     held_at_faces += end.held;
     held_depth = std::max(held_depth, end.held_depth);
     if (end.outside > 0) {

@@ -235,7 +235,9 @@ void Simulation::step(double max_dt) {
     {
         auto tm = g.timer(Phase::reorder);
         g.order.prepare(g.sets, g.opt.sort_disorder);
-        g.grid.reset();
+        const bool reach = g.opt.active_nodes_only && g.particle_cells && !g.comm.distributed();
+        g.grid.reset(reach ? g.grid.reach((*g.particle_cells)[0], (*g.particle_cells)[1])
+                           : g.grid.all());
     }
     switch (g.variant) {
     case StepVariant::usl: g.usl(t, dt); break;
@@ -314,7 +316,11 @@ double Simulation::critical_dt() const { return impl_->critical_dt(); }
 void Simulation::check_fixed_dt(double dt_crit) const { impl_->check_fixed_dt(dt_crit); }
 void Simulation::fixed_dt_warning_given() { impl_->warned_dt = true; }
 const std::vector<ParticleSet> &Simulation::sets() const { return impl_->sets; }
-std::vector<ParticleSet> &Simulation::sets() { return impl_->sets; }
+std::vector<ParticleSet> &Simulation::sets() {
+    impl_->particle_cells.reset();
+    impl_->order.invalidate(); // the slabs too: P2G's colours rely on them
+    return impl_->sets;
+}
 const Scenario &Simulation::scenario() const { return impl_->sc; }
 const std::vector<std::string> &Simulation::warnings() const { return impl_->warnings; }
 const std::optional<FailedCall> &Simulation::failed_call() const { return impl_->failed_call; }
@@ -328,6 +334,8 @@ double Simulation::grid_mass() const {
             m += g.grid.acc[node::kRecord * i + node::kMass];
     return g.comm.sum(m);
 }
+std::size_t Simulation::active_nodes() const { return impl_->grid.active().nodes(); }
+std::size_t Simulation::grid_nodes() const { return impl_->grid.n_nodes; }
 int Simulation::max_threads() { return par::max_threads(); }
 const char *Simulation::kernel_isa() const { return isa_name(impl_->isa); }
 long Simulation::parallel_regions() { return par::regions(); }

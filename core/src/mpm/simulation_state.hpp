@@ -95,6 +95,9 @@ struct Simulation::Impl {
     long step = 0, removed = 0, held_at_faces = 0;
     double held_depth = 0.0;
     double max_speed = -1.0; // max(c + |v|) from the last step; < 0: not known
+    // The cells the particles are in after the last step (StepEnd); not
+    // known at the start, after a restart or a stage's change of groups.
+    std::optional<std::array<std::array<int, 3>, 2>> particle_cells;
     bool warned_dt = false;
     std::vector<std::string> warnings;
     std::optional<FailedCall> failed_call;

@@ -110,6 +110,7 @@ void Simulation::Impl::begin_stage(std::size_t k) {
                      fmt::format("at the start of stage '{}' (t = {:.6g} s)", st.name, time), comm);
     order.sort(sets);
     max_speed = -1.0; // new particles, new velocities: the next step measures afresh
+    particle_cells.reset();
     arm_quiescence();
 }
 

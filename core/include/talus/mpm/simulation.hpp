@@ -57,6 +57,11 @@ struct SolverOptions {
     // so that neighbours on the grid stay neighbours in memory; 0 disables
     // sorting.
     double sort_disorder = 0.01;
+    // Each step resets and updates only the grid nodes its particles reach
+    // (a box around their cells); false: every node, every step. The results
+    // are the same bit for bit; the option is there to show it (tests) and
+    // to measure what it saves (talus_bench).
+    bool active_nodes_only = true;
     // The ranks the run is spread over (docs/mpi.md): each holds the
     // particles of its part of the grid. With more than one, step(),
     // diagnostics(), critical_dt(), kinetic_energy_ratio(),
@@ -161,12 +166,22 @@ class Simulation {
     void fixed_dt_warning_given();
     Diagnostics diagnostics() const;
     const std::vector<ParticleSet> &sets() const;
+    // For a caller that changes the particles between steps (a test that
+    // sets an initial field): the next step then takes nothing from the
+    // last one's record of where they were. It bins them into slabs afresh
+    // (two threads' slabs of one colour must not share a node) and resets
+    // and updates every grid node, not only those around the cells the
+    // last step saw them in (SolverOptions::active_nodes_only).
     std::vector<ParticleSet> &sets();
     const Scenario &scenario() const;
     std::size_t particle_count() const;
     // Total nodal mass of the last step's P2G (equals the particle mass by
     // partition of unity).
     double grid_mass() const;
+    // Grid nodes the last step reset and updated (SolverOptions::
+    // active_nodes_only), and all the grid's nodes, on this rank.
+    std::size_t active_nodes() const;
+    std::size_t grid_nodes() const;
     // Wall time spent in each phase of the cycle so far (for profiling),
     // named as the functions the scheme calls (docs/theory.md).
     static constexpr int kPhases = 10;
