@@ -94,8 +94,7 @@ void Boundary::apply(const Grid &grid, double *field, std::size_t offset, const 
     const int D = dim_;
     const SlotBox &b = grid.active();
     par::for_each(b.rows(), [&](std::size_t r) {
-        const std::size_t first = b.row_begin(r, grid.geo.extent);
-        for (std::size_t i = first; i < first + b.row_length(); ++i) {
+        b.for_each_in_row(r, grid.geo.extent, [&](std::size_t i) {
             std::uint32_t mask =
                 static_cast<std::uint32_t>(fixity[node::kRecord * i + node::kFixity]);
             while (mask) {
@@ -104,7 +103,7 @@ void Boundary::apply(const Grid &grid, double *field, std::size_t offset, const 
                 for (int d = 0; d < D; ++d)
                     if (on[k][d]) V(i)[d] = value[k][d];
             }
-        }
+        });
     });
 }
 

@@ -47,15 +47,10 @@ class Boundary {
     }
 
   private:
-    // f(slot) for the nodes of `box` in the active box, row by row.
+    // f(slot) for the nodes of `box` in the active box.
     template <class F>
     static void for_each_node(const Grid &grid, const SlotBox &box, F &&f) {
-        const SlotBox b = box.cut(grid.active());
-        for (std::size_t r = 0; r < b.rows(); ++r) {
-            const std::size_t first = b.row_begin(r, grid.geo.extent);
-            for (std::size_t i = first; i < first + b.row_length(); ++i)
-                f(i);
-        }
+        box.cut(grid.active()).for_each_slot(grid.geo.extent, f);
     }
     struct Prescribed {
         std::vector<std::uint32_t> nodes;

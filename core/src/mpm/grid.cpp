@@ -125,13 +125,10 @@ void Grid::reset(const SlotBox &active) {
 }
 
 void Grid::clear_momentum() {
-    const SlotBox &b = active_;
-    for (std::size_t r = 0; r < b.rows(); ++r) {
-        const std::size_t first = b.row_begin(r, geo.extent);
-        for (std::size_t i = first; i < first + b.row_length(); ++i)
-            for (std::size_t d = 0; d < static_cast<std::size_t>(geo.dim); ++d)
-                acc[node::kRecord * i + node::kMomentum + d] = 0.0;
-    }
+    active_.for_each_slot(geo.extent, [&](std::size_t i) {
+        for (std::size_t d = 0; d < static_cast<std::size_t>(geo.dim); ++d)
+            acc[node::kRecord * i + node::kMomentum + d] = 0.0;
+    });
 }
 
 double Grid::mass() const {

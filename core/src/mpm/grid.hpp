@@ -121,6 +121,19 @@ struct SlotBox {
         return static_cast<std::size_t>(lo[0]) +
                static_cast<std::size_t>(extent[0]) * (j + static_cast<std::size_t>(extent[1]) * k);
     }
+    // f(slot) for the slots of row r, ascending.
+    template <class F>
+    void for_each_in_row(std::size_t r, const std::array<int, 3> &extent, F &&f) const {
+        const std::size_t first = row_begin(r, extent);
+        for (std::size_t i = first; i < first + row_length(); ++i)
+            f(i);
+    }
+    // f(slot) for every slot of the box, ascending.
+    template <class F>
+    void for_each_slot(const std::array<int, 3> &extent, F &&f) const {
+        for (std::size_t r = 0; r < rows(); ++r)
+            for_each_in_row(r, extent, f);
+    }
 };
 
 struct Grid {

@@ -14,11 +14,7 @@ namespace {
 template <class F>
 void for_each_active_node(const Grid &grid, F &&f) {
     const SlotBox &b = grid.active();
-    par::for_each(b.rows(), [&](std::size_t r) {
-        const std::size_t first = b.row_begin(r, grid.geo.extent);
-        for (std::size_t i = first; i < first + b.row_length(); ++i)
-            f(i);
-    });
+    par::for_each(b.rows(), [&](std::size_t r) { b.for_each_in_row(r, grid.geo.extent, f); });
 }
 
 template <bool Update, DampingKind Damping = DampingKind::none>
