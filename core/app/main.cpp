@@ -188,7 +188,9 @@ int main(int argc, char **argv) {
     run->add_option("--progress-every", progress_every,
                     "Seconds between progress lines when stderr is not a terminal (default 10)")
         ->check(CLI::PositiveNumber);
-    run->add_option("--threads", threads, "Number of threads (default: OpenMP's, all cores)")
+    run->add_option("--threads", threads,
+                    "Number of threads, fixed (default: up to OpenMP's, all cores, each step on "
+                    "as many as run fastest beside the machine's other load)")
         ->check(CLI::PositiveNumber);
     std::string run_plot, run_plot_field = "displacement";
     auto *plot_option =
@@ -382,6 +384,7 @@ int main(int argc, char **argv) {
             ro.progress_tty = rank0 && isatty(2) != 0;
             ro.progress_interval = progress_every;
             ro.solver.threads = threads;
+            ro.solver.adapt_threads = threads == 0;
             if (!run_plot.empty()) {
                 // A picture that cannot be written is found out now, not
                 // after the run. Its folder must exist, or be the run's

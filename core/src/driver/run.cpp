@@ -1198,6 +1198,19 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
                            sim.stages()[sim.stage()].name, sim.time());
     }
     if (opt.progress && opt.progress_tty) std::fprintf(stderr, "\n");
+    // A run whose thread count the governor changed says so: its speed
+    // depends on it. (Its probes alone, a few steps each on fewer threads,
+    // are not worth a line.)
+    if (const Simulation::ThreadUse use = sim.thread_use(); opt.progress && use.changes > 0) {
+        std::string counts;
+        for (std::size_t k = 1; k < use.steps_at.size(); ++k)
+            if (use.steps_at[k] > 0)
+                counts += fmt::format("{}{} step(s) on {} thread(s)", counts.empty() ? "" : ", ",
+                                      use.steps_at[k], k);
+        log << fmt::format("talus: threads chosen by the steps' measured times beside the "
+                           "machine's other load: {} ({} change(s); --threads N fixes them)\n",
+                           counts, use.changes);
+    }
     if (!opt.final_field.empty())
         write_final_particles(dir / "final_particles.csv", sim, opt.final_field, final_offsets);
     RunSummary rs;

@@ -16,6 +16,7 @@
 #include "move_particles.hpp"
 #include "ordering.hpp"
 #include "p2g.hpp"
+#include "thread_governor.hpp"
 
 #include <talus/mpm/simulation.hpp>
 
@@ -102,6 +103,8 @@ struct Simulation::Impl {
     std::vector<std::string> warnings;
     std::optional<FailedCall> failed_call;
     std::array<double, Simulation::kPhases> phase_seconds{};
+    // With opt.adapt_threads on one rank: each step's thread count.
+    std::optional<ThreadGovernor> governor;
 
     // With `restore`, the state comes from it (no generation, no plugin
     // call).

@@ -81,3 +81,76 @@ TEST(Threads, TheBatchSizeDoesNotChangeTheRun) {
     }
     omp_set_num_threads(before);
 }
+
+// The thread governor (SolverOptions::adapt_threads) may change the count
+// between any two steps: a run whose count changes every step, through
+// the re-sort, must give the one-thread run's bits (per-thread scratch
+// sized at the start must serve any count up to it).
+TEST(Threads, ChangingTheCountBetweenStepsChangesNoBit) {
+    const std::string yaml =
+        "talus: 1\ndimension: 2\ngrid: {origin: [0, 0], size: [2, 1], cell: 0.025}\n"
+        "materials:\n  m: {model: mohr_coulomb, density: 2000, youngs_modulus: 1.0e6, "
+        "poisson_ratio: 0.3, friction_angle: 30, cohesion: 100}\n"
+        "groups:\n  a: {material: m, particles_per_cell: 2, velocity: [0.8, -0.4],\n"
+        "      shape: {sphere: {center: [0.6, 0.5], radius: 0.3}}}\n"
+        "boundaries: {y-: {friction: 0.3}}\ngravity: [0, -9.81]\n"
+        "solver: {transfer: {type: flip, alpha: 0.95}}\ntime: {end: 1}\n";
+    const int before = omp_get_max_threads();
+    auto run = [&](bool alternate) {
+        omp_set_num_threads(alternate ? 2 : 1);
+        auto s = talus::test::sim_from_text(yaml);
+        for (int k = 0; k < 40; ++k) {
+            if (alternate) omp_set_num_threads(k % 3 == 0 ? 1 : 2);
+            s->sim->step(1.0); // crosses a re-sort (every 25)
+        }
+        return s;
+    };
+    auto one = run(false);
+    auto mixed = run(true);
+    omp_set_num_threads(before);
+    const auto &a = one->sim->sets()[0];
+    const auto &b = mixed->sim->sets()[0];
+    ASSERT_EQ(a.n, b.n);
+    EXPECT_EQ(one->sim->time(), mixed->sim->time());
+    for (int d = 0; d < 2; ++d) {
+        EXPECT_EQ(a.x[static_cast<std::size_t>(d)], b.x[static_cast<std::size_t>(d)]);
+        EXPECT_EQ(a.v[static_cast<std::size_t>(d)], b.v[static_cast<std::size_t>(d)]);
+    }
+    EXPECT_EQ(a.stress, b.stress);
+    EXPECT_EQ(a.state, b.state);
+}
+
+// A governed run counts every step at the count it ran on and gives the
+// process its threads back at the end, whatever count it finished on.
+TEST(Threads, AGovernedRunAccountsForItsStepsAndGivesTheThreadsBack) {
+    const std::string yaml =
+        "talus: 1\ndimension: 2\ngrid: {origin: [0, 0], size: [1, 1], cell: 0.05}\n"
+        "materials:\n  m: {model: linear_elastic, density: 1000, youngs_modulus: 1.0e6, "
+        "poisson_ratio: 0.3}\n"
+        "groups:\n  a: {material: m, particles_per_cell: 2,\n"
+        "      shape: {box: {min: [0.2, 0.2], max: [0.8, 0.6]}}}\n"
+        "boundaries: {y-: {friction: 0}}\ngravity: [0, -9.81]\ntime: {end: 1}\n";
+    const int before = omp_get_max_threads();
+    omp_set_num_threads(2);
+    {
+        auto s = talus::test::sim_from_text(yaml);
+        talus::SolverOptions opt;
+        opt.adapt_threads = true;
+        s->sim = std::make_unique<talus::Simulation>(s->scenario, opt);
+        for (int k = 0; k < 300; ++k)
+            s->sim->step(1.0);
+        const auto use = s->sim->thread_use();
+        ASSERT_EQ(use.steps_at.size(), 3u); // counts 0, 1, 2
+        EXPECT_EQ(use.steps_at[0], 0);
+        EXPECT_EQ(use.steps_at[1] + use.steps_at[2], 300);
+        // Force the last count to one: the destructor must restore two.
+        omp_set_num_threads(1);
+    }
+    EXPECT_EQ(omp_get_max_threads(), 2);
+    {
+        auto s = talus::test::sim_from_text(yaml); // not governed: nothing to report
+        s->sim->step(1.0);
+        EXPECT_TRUE(s->sim->thread_use().steps_at.empty());
+    }
+    omp_set_num_threads(before);
+}

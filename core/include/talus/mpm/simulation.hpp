@@ -62,6 +62,15 @@ struct SolverOptions {
     // are the same bit for bit; the option is there to show it (tests) and
     // to measure what it saves (talus_bench).
     bool active_nodes_only = true;
+    // Choose each step's thread count, between 1 and `threads` (OpenMP's
+    // default for 0), from the steps' measured wall times, so that a run
+    // next to another busy process is not held at every barrier by a
+    // thread that lost its core (ThreadGovernor). The results do not
+    // depend on the thread count, bit for bit. Off with several ranks
+    // (a rank's steps wait for the others'), and by default: a caller
+    // that sets the threads gets them. `talus run` turns it on unless
+    // --threads is given.
+    bool adapt_threads = false;
     // The ranks the run is spread over (docs/mpi.md): each holds the
     // particles of its part of the grid. With more than one, step(),
     // diagnostics(), critical_dt(), kinetic_energy_ratio(),
@@ -196,6 +205,14 @@ class Simulation {
     std::array<int, 6> cell_box() const;
     // Threads the solver's parallel loops use.
     static int max_threads();
+    // With SolverOptions::adapt_threads: the steps taken at each thread
+    // count (index = count) and how often the count changed; steps_at is
+    // empty without.
+    struct ThreadUse {
+        std::vector<long> steps_at;
+        long changes = 0;
+    };
+    ThreadUse thread_use() const;
     // The instruction set of the transfer kernels this run uses (generic,
     // avx2, avx512): the widest the CPU has, or TALUS_KERNEL_ISA.
     const char *kernel_isa() const;
