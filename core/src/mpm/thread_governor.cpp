@@ -59,9 +59,7 @@ void ThreadGovernor::took(double seconds) {
     ++window_count_;
     if (window_count_ < set_.window_steps) return;
     if (probing_) {
-        // The probe so far: its finished windows and this one.
-        const double mean =
-            (probe_time_ + window_time_) / static_cast<double>(probe_steps_ + window_count_);
+        const double mean = window_time_ / static_cast<double>(window_count_);
         // Already slower than the choice: it ends at once (it could
         // hardly still win by the margin), so that on a steady machine
         // the probes of a slower count are a few steps each.
@@ -71,13 +69,9 @@ void ThreadGovernor::took(double seconds) {
             return;
         }
         if (window_time_ < set_.window_seconds) return;
-        probe_time_ += window_time_;
-        probe_steps_ += window_count_;
+        const long count = window_count_;
+        const double window_time = window_time_;
         start_window();
-        // Several windows: one window can miss the rare long steps of a
-        // loaded machine (a thread descheduled for a time slice) and
-        // look faster than the count is.
-        if (++probe_windows_ < set_.probe_windows) return;
         if (mean < (1.0 - set_.margin) * baseline_) {
             // Faster: it becomes the choice, and the probe its first
             // measurement.
@@ -97,33 +91,39 @@ void ThreadGovernor::took(double seconds) {
             left_before_ = left;
             interval_before_ = left_interval;
             probe_turn_ = 0;
-            chosen_time_ = probe_time_;
-            chosen_steps_ = probe_steps_;
-            windows_at_chosen_ = probe_windows_;
+            recent_ = {};
+            remember(window_time, count);
+            windows_at_chosen_ = 1;
             return;
         }
         end_probe();
         return;
     }
     if (window_time_ < set_.window_seconds) return;
-    const long count = window_count_;
-    const double per_step = window_time_ / static_cast<double>(count);
+    remember(window_time_, window_count_);
     start_window();
-    chosen_time_ += per_step * static_cast<double>(count);
-    chosen_steps_ += count;
     if (++windows_at_chosen_ < interval_) return;
-    // The chosen count's mean since the last probe: it holds the rare long
-    // steps (a thread descheduled for a time slice) that make a loaded
-    // machine's cost, which the best window would hide.
-    baseline_ = chosen_time_ / static_cast<double>(chosen_steps_);
-    chosen_time_ = 0.0;
-    chosen_steps_ = 0;
+    // The chosen count's mean over its last windows: it holds the rare
+    // long steps (a thread descheduled for a time slice) that make a
+    // loaded machine's cost, which the best window would hide, and it is
+    // recent: a model's step cost drifts as it evolves (the column's
+    // doubles), and an older mean would compare the probe with another
+    // model.
+    double time = 0.0;
+    long steps = 0;
+    for (const Window &w : recent_) {
+        time += w.seconds;
+        steps += w.steps;
+    }
+    baseline_ = time / static_cast<double>(steps);
     probing_ = true;
-    probe_time_ = 0.0;
-    probe_steps_ = 0;
-    probe_windows_ = 0;
     running_ = ladder_[static_cast<std::size_t>(next_probe())];
     warm_up_ = true;
+}
+
+void ThreadGovernor::remember(double seconds, long steps) {
+    recent_[static_cast<std::size_t>(next_recent_)] = {seconds, steps};
+    next_recent_ = (next_recent_ + 1) % kRecent;
 }
 
 // A probe that lost: back to the chosen count, and the next probe later.

@@ -11,20 +11,22 @@
 // The policy is a measured A/B. Steps are timed in windows of at least
 // `window_seconds` and `window_steps` steps; the first step after a change
 // of count is not counted (caches refill on the cores that take the
-// work). Every `interval` windows at the chosen count, `probe_windows`
-// windows run at a nearby count of the ladder (all threads, all but one,
-// then halves down to one; one and two rungs either way, in turn). That
-// count is taken when its steps are faster than the chosen count's since
-// the last probe by `margin`; a probe already slower after `window_steps`
-// steps ends there.
-// A probe that loses doubles the interval, up to `longest_interval`, so
-// that on a steady machine the probes cost under a percent; a change
-// brings it back to `first_interval`, so that the run follows the
-// machine's load.
+// work). Every `interval` windows at the chosen count, one window runs at
+// a nearby count of the ladder (all threads, all but one, then halves
+// down to one; one and two rungs either way, in turn). That count is taken
+// when its steps are faster than the chosen count's last 4 windows by
+// `margin`; a probe already slower after `window_steps` steps ends
+// there. A probe that loses doubles the interval, up to
+// `longest_interval`, so that on a steady machine the probes cost under a
+// percent. A change brings it back to `first_interval`, so that the run
+// follows the machine's load, except a change back to the count left at
+// the previous change, which doubles that count's interval: a lucky
+// window then does not make the run flip back and forth.
 //
 // Policy only: the caller times the steps and applies threads().
 #pragma once
 
+#include <array>
 #include <vector>
 
 namespace talus {
@@ -34,7 +36,6 @@ class ThreadGovernor {
     struct Settings {
         double window_seconds = 0.05;
         int window_steps = 2;
-        int probe_windows = 2;
         int first_interval = 4;
         int longest_interval = 128;
         double margin = 0.10;
@@ -60,6 +61,7 @@ class ThreadGovernor {
     void start_window();
     int next_probe(); // a rung of the ladder near the chosen one
     void end_probe();
+    void remember(double seconds, long steps);
 
     Settings set_;
     std::vector<int> ladder_; // ascending
@@ -71,12 +73,15 @@ class ThreadGovernor {
     bool warm_up_ = false; // the next step is not counted
     double window_time_ = 0.0;
     int window_count_ = 0;
-    double chosen_time_ = 0.0; // seconds and steps at the chosen count since the last probe
-    long chosen_steps_ = 0;
-    double baseline_ = 0.0;   // the chosen count's seconds per step, for the probe
-    double probe_time_ = 0.0; // the probe's finished windows
-    long probe_steps_ = 0;
-    int probe_windows_ = 0;
+    // The chosen count's last windows (the probes' baseline).
+    struct Window {
+        double seconds = 0.0;
+        long steps = 0;
+    };
+    static constexpr int kRecent = 4;
+    std::array<Window, kRecent> recent_{};
+    int next_recent_ = 0;
+    double baseline_ = 0.0; // the chosen count's seconds per step, for the probe
     int windows_at_chosen_ = 0;
     int interval_;
     int left_before_ = -1;    // the rung the last change left
