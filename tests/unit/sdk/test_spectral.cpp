@@ -14,6 +14,7 @@
 #include <cstring>
 #include <limits>
 #include <random>
+#include <utility>
 #include <vector>
 
 namespace {
@@ -77,6 +78,45 @@ TEST(SymmetricEigen, KnownValuesAtEverySpacing) {
             std::sort(l.data(), l.data() + 3, std::greater<>());
             expect_decomposition(r * l.asDiagonal() * r.transpose(), l);
         }
+}
+
+// Plane matrices (entries (0, 2) and (1, 2) exactly zero: a plane-strain
+// stress) take the closed form of the in-plane block. A rotation about z
+// keeps them plane; the out-of-plane value goes above, between, below and
+// onto the in-plane ones, at every spacing of those.
+TEST(SymmetricEigen, PlaneMatricesAtEverySpacing) {
+    std::mt19937 gen(5);
+    std::uniform_real_distribution<double> angle(-3.2, 3.2);
+    for (double gap : {1.0, 1e-1, 1e-3, 1e-5, 1e-7, 1e-9, 1e-11, 1e-13, 0.0})
+        for (int trial = 0; trial < 500; ++trial) {
+            const Mat3 r = Eigen::AngleAxisd(angle(gen), V3::UnitZ()).toRotationMatrix();
+            const double p1 = -1e5, p2 = -1e5 * (1.0 + gap);
+            const double z[] = {2e5, -1.00000001e5, -3e5, p1, p2, -1e5 + 1e-3};
+            const double l3 = z[trial % 6];
+            V3 l(p1, p2, l3);
+            Mat3 a = r * V3(p1, p2, 0.0).asDiagonal() * r.transpose();
+            a(2, 2) = l3;
+            a(0, 2) = a(2, 0) = a(1, 2) = a(2, 1) = 0.0; // exactly plane
+            std::sort(l.data(), l.data() + 3, std::greater<>());
+            expect_decomposition(a, l);
+        }
+    // The in-plane block out of [1e-150, 1e150] is scaled.
+    for (double s : {1e-250, 1e-170, 1e170, 1e250}) {
+        const Mat3 r = Eigen::AngleAxisd(0.3, V3::UnitZ()).toRotationMatrix();
+        Mat3 a = r * V3(2.0 * s, s * (1.0 + 1e-9), 0.0).asDiagonal() * r.transpose();
+        a(2, 2) = 0.5 * s;
+        a(0, 2) = a(2, 0) = a(1, 2) = a(2, 1) = 0.0;
+        expect_decomposition(a, V3(2.0, 1.0 + 1e-9, 0.5) * s);
+    }
+    // NaN in any in-plane entry or the out-of-plane one gives NaN out.
+    for (const auto &[i, j] : {std::pair{0, 0}, {1, 1}, {0, 1}, {2, 2}}) {
+        Mat3 a = Eigen::Vector3d(3.0, 1.0, 2.0).asDiagonal();
+        a(0, 1) = a(1, 0) = 0.5;
+        a(i, j) = a(j, i) = std::numeric_limits<double>::quiet_NaN();
+        const talus::sdk::SymmetricEigen e = talus::sdk::symmetric_eigen(a);
+        EXPECT_TRUE(e.values.hasNaN()) << i << j;
+        EXPECT_TRUE(e.compose(V3::Ones()).hasNaN()) << i << j;
+    }
 }
 
 TEST(SymmetricEigen, MatchesTheIterativeSolverOnRandomMatrices) {
@@ -160,12 +200,18 @@ TEST(SymmetricEigen, PairLanesAreTheSingleDecompositionBitForBit) {
     Mat3 nan = m[2];
     nan(0, 2) = nan(2, 0) = std::numeric_limits<double>::quiet_NaN();
     m.push_back(nan);
+    Mat3 plane = m[5]; // the closed form of the in-plane block
+    plane(0, 2) = plane(2, 0) = plane(1, 2) = plane(2, 1) = 0.0;
+    m.push_back(plane);
+    Mat3 plane_nan = plane;
+    plane_nan(0, 1) = plane_nan(1, 0) = std::numeric_limits<double>::quiet_NaN();
+    m.push_back(plane_nan);
     auto same = [](const talus::sdk::SymmetricEigen &a, const talus::sdk::SymmetricEigen &b) {
         return std::memcmp(a.values.data(), b.values.data(), sizeof(double) * 3) == 0 &&
                std::memcmp(a.vectors.data(), b.vectors.data(), sizeof(double) * 9) == 0;
     };
     // Every matrix beside every special one, and the random ones in pairs.
-    const std::size_t specials = 6;
+    const std::size_t specials = 8;
     for (std::size_t i = 0; i < m.size(); ++i)
         for (std::size_t j = 0; j < m.size(); ++j) {
             if (i < m.size() - specials && j < m.size() - specials && j != i + 1) continue;

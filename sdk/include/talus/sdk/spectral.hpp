@@ -19,6 +19,12 @@
 // multiples of it). The two remaining values and vectors are those of C
 // restricted to the plane normal to it, a 2 x 2 symmetric problem solved in
 // closed form without cancellation. The values are Rayleigh quotients of C.
+//
+// A matrix whose entries (0, 2) and (1, 2) are exactly zero (a plane-strain
+// or plane-stress stress or strain: the out-of-plane shears vanish) is
+// block diagonal: its third entry is a value with the axis e_z, and the
+// in-plane 2 x 2 block is solved by the same closed form, without the
+// cubic (a fifth of the work).
 #pragma once
 
 #include "talus/sdk/voigt.hpp"
@@ -277,14 +283,57 @@ inline bool is_multiple_of_identity(const Mat3 &a) {
     return m == 0.0 && c00 + c11 + c22 + a(0, 1) + a(0, 2) + a(1, 2) == 0.0;
 }
 
+// The entries (0, 2) and (1, 2) are exactly zero (NaN is not).
+inline bool is_plane(const Mat3 &a) { return a(0, 2) == 0.0 && a(1, 2) == 0.0; }
+
+// The decomposition of a plane matrix (is_plane): the value a(2, 2) on the
+// axis e_z and the in-plane block [a00 a01; a01 a11] in closed form, as the
+// 2 x 2 problem of unordered_eigen: values mean +- g, g = hypot(h, a01),
+// h = (a11 - a00) / 2, and the vector of the value on h's side (a01, h +
+// sign(h) g), without cancellation. The block's values have the absolute
+// error of a few round-offs of its largest entry (backward stable).
+inline void plane_eigen(const Mat3 &a, SymmetricEigen &out) {
+    if (is_multiple_of_identity(a)) { // q I has any basis: the axes
+        out.values.setConstant(a(0, 0));
+        out.vectors.setIdentity();
+        return;
+    }
+    const double a00 = a(0, 0), a11 = a(1, 1), a01 = a(0, 1);
+    // Halves first: exact, and no overflow near the largest doubles.
+    const double h = 0.5 * a11 - 0.5 * a00, mean = 0.5 * a00 + 0.5 * a11;
+    // h^2 + a01^2 and the vector's norm neither under- nor overflow for
+    // entries in [1e-150, 1e150]; beyond, the block is scaled (rarely; a
+    // direction does not depend on the scale).
+    const double m = std::max(std::abs(h), std::abs(a01));
+    double hs = h, bs = a01, scale = 1.0;
+    if (!(m > 1e-150 && m < 1e150) && m > 0.0) {
+        scale = m;
+        hs = h / m;
+        bs = a01 / m;
+    }
+    // NaN in h or a01 reaches gs (the maximum may have dropped it).
+    const double gs = std::sqrt(hs * hs + bs * bs), g = scale * gs;
+    double s0 = 0.0, s1 = 1.0; // g = 0: a double value, any basis of the plane
+    if (gs > 0.0) {
+        const double k = 1.0 / std::sqrt(2.0 * gs * (gs + std::abs(hs)));
+        s0 = bs * k;
+        s1 = (hs + std::copysign(gs, hs)) * k;
+    } else if (!(gs == 0.0)) {
+        s0 = s1 = gs; // NaN
+    }
+    const double l[3] = {a(2, 2), mean + std::copysign(g, h), mean - std::copysign(g, h)};
+    const double vec[3][3] = {{0.0, 0.0, 1.0}, {s0, s1, 0.0}, {s1, -s0, 0.0}};
+    order_lane(0.0, 1.0, l, vec, /*identity=*/false, out);
+}
+
 } // namespace detail
 
 namespace detail {
 
 // The decompositions of a and b, side by side where the compiler has the
 // lane pair; eb may be null (a alone).
-inline void symmetric_eigen_lanes(const Mat3 &a, const Mat3 &b, SymmetricEigen &ea,
-                                  SymmetricEigen *eb) {
+inline void general_eigen_lanes(const Mat3 &a, const Mat3 &b, SymmetricEigen &ea,
+                                SymmetricEigen *eb) {
 #if defined(TALUS_SDK_HAS_LANE_PAIR)
     using T = LanePair;
     const Unordered<T> u =
@@ -309,6 +358,19 @@ inline void symmetric_eigen_lanes(const Mat3 &a, const Mat3 &b, SymmetricEigen &
         order_lane(u.q, u.scale, u.l, u.vec, is_multiple_of_identity(m), lane == 0 ? ea : *eb);
     }
 #endif
+}
+
+inline void symmetric_eigen_lanes(const Mat3 &a, const Mat3 &b, SymmetricEigen &ea,
+                                  SymmetricEigen *eb) {
+    // Plane matrices in closed form, each by itself, so that a matrix's
+    // bits do not depend on its partner; the others as below.
+    const bool plane_a = is_plane(a), plane_b = eb && is_plane(b);
+    if (plane_a) plane_eigen(a, ea);
+    if (plane_b) plane_eigen(b, *eb);
+    if (plane_a && (!eb || plane_b)) return;
+    if (plane_a) return general_eigen_lanes(b, b, *eb, nullptr);
+    if (eb && plane_b) return general_eigen_lanes(a, a, ea, nullptr);
+    general_eigen_lanes(a, b, ea, eb);
 }
 
 } // namespace detail
