@@ -92,18 +92,14 @@ void Boundary::apply(const Grid &grid, double *field, std::size_t offset, const 
                 on[k][d] = true;
             }
     const int D = dim_;
-    const SlotBox &b = grid.active();
-    par::for_each(b.rows(), [&](std::size_t r) {
-        b.for_each_in_row(r, grid.geo.extent, [&](std::size_t i) {
-            std::uint32_t mask =
-                static_cast<std::uint32_t>(fixity[node::kRecord * i + node::kFixity]);
-            while (mask) {
-                const std::size_t k = static_cast<std::size_t>(__builtin_ctz(mask));
-                mask &= mask - 1;
-                for (int d = 0; d < D; ++d)
-                    if (on[k][d]) V(i)[d] = value[k][d];
-            }
-        });
+    grid.for_each_active_node([&](std::size_t i) {
+        std::uint32_t mask = static_cast<std::uint32_t>(fixity[node::kRecord * i + node::kFixity]);
+        while (mask) {
+            const std::size_t k = static_cast<std::size_t>(__builtin_ctz(mask));
+            mask &= mask - 1;
+            for (int d = 0; d < D; ++d)
+                if (on[k][d]) V(i)[d] = value[k][d];
+        }
     });
 }
 

@@ -9,6 +9,8 @@
 
 #include <talus/mpm/shape_functions.hpp>
 
+#include "parallel.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cstddef>
@@ -176,6 +178,13 @@ struct Grid {
     void reset(const SlotBox &active);
     void reset() { reset(all()); }
     const SlotBox &active() const { return active_; }
+    // f(slot) for every node of the active box, its rows in parallel (the
+    // grid update, the fixities' grid side).
+    template <class F>
+    void for_each_active_node(F &&f) const {
+        const SlotBox &b = active_;
+        par::for_each(b.rows(), [&](std::size_t r) { b.for_each_in_row(r, geo.extent, f); });
+    }
     // Local (i, j, k) of a slot.
     std::array<int, 3> local(std::size_t slot) const {
         const std::size_t ex = static_cast<std::size_t>(geo.extent[0]);

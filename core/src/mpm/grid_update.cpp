@@ -10,13 +10,6 @@ using node::kRecord;
 
 namespace {
 
-// f(slot) for every node of the grid's active box, rows in parallel.
-template <class F>
-void for_each_active_node(const Grid &grid, F &&f) {
-    const SlotBox &b = grid.active();
-    par::for_each(b.rows(), [&](std::size_t r) { b.for_each_in_row(r, grid.geo.extent, f); });
-}
-
 template <bool Update, DampingKind Damping = DampingKind::none>
 void velocities(Grid &grid, const Boundary &bc, double t, double dt, double alpha = 0.0) {
     double *a = grid.acc.data(), *v = grid.vel.data();
@@ -26,7 +19,7 @@ void velocities(Grid &grid, const Boundary &bc, double t, double dt, double alph
     // v~ from the constrained v, conditions on v~), which matters for
     // friction, where v~'s approach speed depends on the constrained v.
     // Over the active box alone (Grid::reset): elsewhere no particle reads.
-    for_each_active_node(grid, [&](std::size_t i) {
+    grid.for_each_active_node([&](std::size_t i) {
         const double m = a[kRecord * i + node::kMass];
         const double inv = m > 0.0 ? 1.0 / m : 0.0;
         for (std::size_t d = 0; d < static_cast<std::size_t>(D); ++d) {
@@ -79,7 +72,7 @@ void remapped_velocity(Grid &grid, const Boundary &bc, double t_end, bool mean) 
     double *a = grid.acc.data();
     const double *v = grid.vel.data();
     const std::size_t D = static_cast<std::size_t>(grid.geo.dim);
-    for_each_active_node(grid, [&](std::size_t i) {
+    grid.for_each_active_node([&](std::size_t i) {
         const double m = a[kRecord * i + node::kMass];
         for (std::size_t d = 0; d < D; ++d)
             a[kRecord * i + node::kForce + d] =
@@ -87,7 +80,7 @@ void remapped_velocity(Grid &grid, const Boundary &bc, double t_end, bool mean) 
     });
     bc.apply(grid, a, node::kForce, a, t_end);
     if (mean)
-        for_each_active_node(grid, [&](std::size_t i) {
+        grid.for_each_active_node([&](std::size_t i) {
             for (std::size_t d = 0; d < D; ++d) {
                 const std::size_t k = kRecord * i + d;
                 a[k + node::kMomentum] = 0.5 * (v[k + node::kVelocity] + a[k + node::kForce]);
