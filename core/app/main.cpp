@@ -34,6 +34,22 @@
 
 namespace {
 
+// A number above zero. (CLI11's PositiveNumber names its range "0.000000
+// to" the largest double in all its 309 digits.)
+const CLI::Validator kPositive(
+    [](std::string &text) -> std::string {
+        std::size_t used = 0;
+        double v = 0.0;
+        try {
+            v = std::stod(text, &used);
+        } catch (const std::exception &) {
+            used = 0;
+        }
+        if (used == 0 || used != text.size()) return "expected a number, got '" + text + "'";
+        return v > 0.0 ? std::string() : "must be greater than 0, got " + text;
+    },
+    "POSITIVE");
+
 using namespace talus;
 
 std::string wrap(const std::string &text, std::size_t indent, std::size_t width = 78) {
@@ -187,11 +203,11 @@ int main(int argc, char **argv) {
                   "exceeded");
     run->add_option("--progress-every", progress_every,
                     "Seconds between progress lines when stderr is not a terminal (default 10)")
-        ->check(CLI::PositiveNumber);
+        ->check(kPositive);
     run->add_option("--threads", threads,
                     "Number of threads, fixed (default: up to OpenMP's, all cores, each step on "
                     "as many as run fastest beside the machine's other load)")
-        ->check(CLI::PositiveNumber);
+        ->check(kPositive);
     std::string run_plot, run_plot_field = "displacement";
     auto *plot_option =
         run->add_option("--plot", run_plot,
@@ -271,11 +287,11 @@ int main(int argc, char **argv) {
     check
         ->add_option("--strain-scale", check_opt.strain_scale,
                      "Strain increment of the loading paths (default 1e-4)")
-        ->check(CLI::PositiveNumber);
+        ->check(kPositive);
     check
         ->add_option("--density", check_opt.density,
                      "Density of the test point in kg/m^3 (default 2000)")
-        ->check(CLI::PositiveNumber);
+        ->check(kPositive);
     check->add_flag("--no-isolate", no_isolate,
                     "Run the checks in this process (for debugging a plugin under gdb)");
 
