@@ -226,10 +226,20 @@ struct MohrCoulomb {
     void quick_update(const talus::sdk::Points &p) const {
         for (std::size_t k = 0; k < p.n; ++k) {
             Vec6 trial;
-            if (!elastic_trial(Eigen::Map<const Vec6>(p.stress_start + 6 * k),
-                               Eigen::Map<const Vec6>(p.strain_increment + 6 * k),
-                               p.state_start[state.size() * k], trial))
+            // Without softening the strength is the same for every point:
+            // the screen inlined into this loop, without a call and a copy
+            // of the strength per point.
+            if (!softening_) {
+                trial = Eigen::Map<const Vec6>(p.stress_start + 6 * k) +
+                        hooke(Eigen::Map<const Vec6>(p.strain_increment + 6 * k));
+                if (!clearly_elastic(trial, fixed_strength_, fixed_lode_bound_,
+                                     fixed_inv_lode_bound_))
+                    continue;
+            } else if (!elastic_trial(Eigen::Map<const Vec6>(p.stress_start + 6 * k),
+                                      Eigen::Map<const Vec6>(p.strain_increment + 6 * k),
+                                      p.state_start[state.size() * k], trial)) {
                 continue;
+            }
             Eigen::Map<Vec6>(p.stress_end + 6 * k) = trial;
             p.state_end[state.size() * k + 2] = talus_mc::kElastic;
             if (p.tangent) Eigen::Map<Mat6>(p.tangent + 36 * k) = De_; // symmetric
