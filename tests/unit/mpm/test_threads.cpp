@@ -8,6 +8,22 @@
 
 #include <omp.h>
 
+namespace {
+
+// Two runs' particles, bit for bit.
+void expect_same_particles(const talus::ParticleSet &a, const talus::ParticleSet &b, int dim) {
+    ASSERT_EQ(a.n, b.n);
+    for (std::size_t d = 0; d < static_cast<std::size_t>(dim); ++d) {
+        EXPECT_EQ(a.x[d], b.x[d]);
+        EXPECT_EQ(a.v[d], b.v[d]);
+    }
+    EXPECT_EQ(a.stress, b.stress);
+    EXPECT_EQ(a.F, b.F);
+    EXPECT_EQ(a.state, b.state);
+}
+
+} // namespace
+
 TEST(Threads, TwoThreadsReproduceOneBitForBit) {
     const std::string yaml =
         "talus: 1\ndimension: 3\ngrid: {origin: [0, 0, 0], size: [1.6, 1.6, 1.6], cell: 0.05}\n"
@@ -28,16 +44,8 @@ TEST(Threads, TwoThreadsReproduceOneBitForBit) {
     auto one = run(1);
     auto two = run(2);
     omp_set_num_threads(before);
-    ASSERT_EQ(one->sim->sets()[0].n, two->sim->sets()[0].n);
-    const auto &a = one->sim->sets()[0];
-    const auto &b = two->sim->sets()[0];
     EXPECT_EQ(one->sim->time(), two->sim->time());
-    for (int d = 0; d < 3; ++d) {
-        EXPECT_EQ(a.x[static_cast<std::size_t>(d)], b.x[static_cast<std::size_t>(d)]);
-        EXPECT_EQ(a.v[static_cast<std::size_t>(d)], b.v[static_cast<std::size_t>(d)]);
-    }
-    EXPECT_EQ(a.stress, b.stress);
-    EXPECT_EQ(a.F, b.F);
+    expect_same_particles(one->sim->sets()[0], two->sim->sets()[0], 3);
 }
 
 // The plugin's batch (the material update's block of points) is also the
@@ -69,15 +77,10 @@ TEST(Threads, TheBatchSizeDoesNotChangeTheRun) {
     for (const int batch : {100, 7, 1}) {
         auto other = run(batch);
         SCOPED_TRACE(testing::Message() << "batch " << batch);
-        const auto &a = ref->sim->sets()[0];
-        const auto &b = other->sim->sets()[0];
-        ASSERT_GT(a.n, 1000u); // many blocks, and chunks that 100 and 7 do not divide
+        // Many blocks, and chunks that 100 and 7 do not divide.
+        ASSERT_GT(ref->sim->sets()[0].n, 1000u);
         EXPECT_EQ(ref->sim->time(), other->sim->time());
-        for (int d = 0; d < 2; ++d) {
-            EXPECT_EQ(a.x[static_cast<std::size_t>(d)], b.x[static_cast<std::size_t>(d)]);
-            EXPECT_EQ(a.v[static_cast<std::size_t>(d)], b.v[static_cast<std::size_t>(d)]);
-        }
-        EXPECT_EQ(a.stress, b.stress);
+        expect_same_particles(ref->sim->sets()[0], other->sim->sets()[0], 2);
     }
     omp_set_num_threads(before);
 }
@@ -108,16 +111,8 @@ TEST(Threads, ChangingTheCountBetweenStepsChangesNoBit) {
     auto one = run(false);
     auto mixed = run(true);
     omp_set_num_threads(before);
-    const auto &a = one->sim->sets()[0];
-    const auto &b = mixed->sim->sets()[0];
-    ASSERT_EQ(a.n, b.n);
     EXPECT_EQ(one->sim->time(), mixed->sim->time());
-    for (int d = 0; d < 2; ++d) {
-        EXPECT_EQ(a.x[static_cast<std::size_t>(d)], b.x[static_cast<std::size_t>(d)]);
-        EXPECT_EQ(a.v[static_cast<std::size_t>(d)], b.v[static_cast<std::size_t>(d)]);
-    }
-    EXPECT_EQ(a.stress, b.stress);
-    EXPECT_EQ(a.state, b.state);
+    expect_same_particles(one->sim->sets()[0], mixed->sim->sets()[0], 2);
 }
 
 // A governed run counts every step at the count it ran on and gives the
