@@ -51,6 +51,12 @@ using talus_mc::V3;
 
 constexpr double kDeg = std::numbers::pi / 180.0;
 
+#if defined(__GNUC__) || defined(__clang__)
+#define TALUS_MC_INLINE [[gnu::always_inline]] inline
+#else
+#define TALUS_MC_INLINE inline
+#endif
+
 std::string fmt_g(double v) {
     char buf[64];
     std::snprintf(buf, sizeof buf, "%g", v);
@@ -226,20 +232,10 @@ struct MohrCoulomb {
     void quick_update(const talus::sdk::Points &p) const {
         for (std::size_t k = 0; k < p.n; ++k) {
             Vec6 trial;
-            // Without softening the strength is the same for every point:
-            // the screen inlined into this loop, without a call and a copy
-            // of the strength per point.
-            if (!softening_) {
-                trial = Eigen::Map<const Vec6>(p.stress_start + 6 * k) +
-                        hooke(Eigen::Map<const Vec6>(p.strain_increment + 6 * k));
-                if (!clearly_elastic(trial, fixed_strength_, fixed_lode_bound_,
-                                     fixed_inv_lode_bound_))
-                    continue;
-            } else if (!elastic_trial(Eigen::Map<const Vec6>(p.stress_start + 6 * k),
-                                      Eigen::Map<const Vec6>(p.strain_increment + 6 * k),
-                                      p.state_start[state.size() * k], trial)) {
+            if (!elastic_trial(Eigen::Map<const Vec6>(p.stress_start + 6 * k),
+                               Eigen::Map<const Vec6>(p.strain_increment + 6 * k),
+                               p.state_start[state.size() * k], trial))
                 continue;
-            }
             Eigen::Map<Vec6>(p.stress_end + 6 * k) = trial;
             p.state_end[state.size() * k + 2] = talus_mc::kElastic;
             if (p.tangent) Eigen::Map<Mat6>(p.tangent + 36 * k) = De_; // symmetric
@@ -370,12 +366,18 @@ struct MohrCoulomb {
 
     // The trial stress of an increment from s0 at kappa_n, and whether it
     // is clearly inside the surface (the elastic step's whole result).
-    bool elastic_trial(const Vec6 &s0, const Vec6 &de, double kappa_n, Vec6 &trial) const {
-        const Strength st_n = strength(kappa_n);
+    // Inlined into the quick pass's loop: without softening it then reads
+    // the fixed strength in place (a call and a copy of the strength per
+    // point were a quarter of the pass).
+    TALUS_MC_INLINE bool elastic_trial(const Vec6 &s0, const Vec6 &de, double kappa_n,
+                                       Vec6 &trial) const {
         trial = s0 + hooke(de);
-        const double bound = softening_ ? lode_bound(st_n) : fixed_lode_bound_;
-        const double inv_bound = softening_ ? 1.0 / bound : fixed_inv_lode_bound_;
-        return clearly_elastic(trial, st_n, bound, inv_bound);
+        if (!softening_)
+            return clearly_elastic(trial, fixed_strength_, fixed_lode_bound_,
+                                   fixed_inv_lode_bound_);
+        const Strength st_n = strength_at(kappa_n);
+        const double bound = lode_bound(st_n);
+        return clearly_elastic(trial, st_n, bound, 1.0 / bound);
     }
 
     // Linear softening weight in [0, 1] and its derivative.

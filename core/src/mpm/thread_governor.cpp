@@ -1,7 +1,6 @@
 #include "thread_governor.hpp"
 
 #include <algorithm>
-#include <limits>
 
 namespace talus {
 
@@ -60,43 +59,16 @@ void ThreadGovernor::took(double seconds) {
     if (window_count_ < set_.window_steps) return;
     if (probing_) {
         const double mean = window_time_ / static_cast<double>(window_count_);
-        // Already slower than the choice: it ends at once (it could
-        // hardly still win by the margin), so that on a steady machine
-        // the probes of a slower count are a few steps each.
-        if (mean > baseline_) {
-            start_window();
+        // A probe already slower than the choice ends at once (it could
+        // hardly still win by the margin), so that on a steady machine the
+        // probes of a slower count are a few steps each; the others run
+        // their window.
+        if (mean <= baseline_ && window_time_ < set_.window_seconds) return;
+        if (mean < (1.0 - set_.margin) * baseline_)
+            adopt_probe();
+        else
             end_probe();
-            return;
-        }
-        if (window_time_ < set_.window_seconds) return;
-        const long count = window_count_;
-        const double window_time = window_time_;
         start_window();
-        if (mean < (1.0 - set_.margin) * baseline_) {
-            // Faster: it becomes the choice, and the probe its first
-            // measurement.
-            probing_ = false;
-            const int left = chosen_, left_interval = interval_;
-            chosen_ = static_cast<int>(std::find(ladder_.begin(), ladder_.end(), running_) -
-                                       ladder_.begin());
-            ++changes_;
-            // Back to the count left at the last change: that change was
-            // a mistake (a noisy window) or the load came and went. The
-            // probes go on from the interval before it, doubled, so that
-            // noise does not make the run flip back and forth; otherwise
-            // soon, to follow a load that changed.
-            interval_ = chosen_ == left_before_
-                            ? std::min(2 * interval_before_, set_.longest_interval)
-                            : set_.first_interval;
-            left_before_ = left;
-            interval_before_ = left_interval;
-            probe_turn_ = 0;
-            recent_ = {};
-            remember(window_time, count);
-            windows_at_chosen_ = 1;
-            return;
-        }
-        end_probe();
         return;
     }
     if (window_time_ < set_.window_seconds) return;
@@ -124,6 +96,28 @@ void ThreadGovernor::took(double seconds) {
 void ThreadGovernor::remember(double seconds, long steps) {
     recent_[static_cast<std::size_t>(next_recent_)] = {seconds, steps};
     next_recent_ = (next_recent_ + 1) % kRecent;
+}
+
+// A probe that won: its count becomes the choice, and its window the
+// first measurement of it.
+void ThreadGovernor::adopt_probe() {
+    const int left = chosen_, left_interval = interval_;
+    chosen_ =
+        static_cast<int>(std::find(ladder_.begin(), ladder_.end(), running_) - ladder_.begin());
+    ++changes_;
+    // Back to the count left at the last change: that change was a mistake
+    // (a lucky window) or the load came and went. The probes go on from
+    // the interval it had, doubled, so that noise does not make the run
+    // flip back and forth; otherwise soon, to follow a load that changed.
+    interval_ = chosen_ == left_before_ ? std::min(2 * interval_before_, set_.longest_interval)
+                                        : set_.first_interval;
+    left_before_ = left;
+    interval_before_ = left_interval;
+    probe_turn_ = 0;
+    probing_ = false;
+    recent_ = {};
+    remember(window_time_, window_count_);
+    windows_at_chosen_ = 1;
 }
 
 // A probe that lost: back to the chosen count, and the next probe later.

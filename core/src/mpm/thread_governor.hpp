@@ -60,6 +60,7 @@ class ThreadGovernor {
   private:
     void start_window();
     int next_probe(); // a rung of the ladder near the chosen one
+    void adopt_probe();
     void end_probe();
     void remember(double seconds, long steps);
 
