@@ -135,6 +135,22 @@ T largest_cubic_root(T s) {
     return y - 2.0 * f * d1 / (2.0 * d1 * d1 - f * d2);
 }
 
+// The 2 x 2 symmetric problem [m00 b; b m11] with h = (m11 - m00) / 2, in
+// closed form: its values are the mean +- g, g = hypot(h, b), and (s0, s1)
+// the unit vector of the value on h's side, mean + sign(h) g: (b, h +
+// sign(h) g) normalised, whose second component has no cancellation (its
+// norm^2 is 2 g (g + |h|)). g = 0 is a double value, any basis: (0, 1).
+// The other value's vector is (s1, -s0).
+template <class T>
+void rotation_2x2(T h, T b, T &g, T &s0, T &s1) {
+    const T zero = T(), one = zero + 1.0;
+    g = lane_sqrt(h * h + b * b);
+    const auto split = g > 0.0;
+    const T k = lane_select(split, 1.0 / lane_sqrt(2.0 * g * (g + lane_abs(h))), zero);
+    s0 = lane_select(split, b * k, zero);
+    s1 = lane_select(split, (h + lane_copysign(g, h)) * k, one);
+}
+
 // The decomposition of the lanes of C = A - q I (upper triangle c..), up to
 // the ordering: the values l[3] (Rayleigh quotients of C, unscaled) and
 // their vectors vec[3][3], per lane.
@@ -220,17 +236,10 @@ Unordered<T> unordered_eigen(T a00, T a11, T a22, T a01, T a02, T a12) {
             cv2 = c02 * v0 + c12 * v1 + c22 * v2;
     const T m00 = u0 * cu0 + u1 * cu1 + u2 * cu2, m01 = u0 * cw0 + u1 * cw1 + u2 * cw2,
             m11 = w0 * cw0 + w1 * cw1 + w2 * cw2, lv = v0 * cv0 + v1 * cv1 + v2 * cv2;
-    // The 2 x 2 problem [m00 m01; m01 m11] in closed form: values mean +- g,
-    // g = hypot(h, m01), h = (m11 - m00) / 2, and the vector of the value
-    // on h's side, (m01, h + sign(h) g) in the basis (u, w), whose second
-    // component has no cancellation; its norm^2 is 2 g (g + |h|). g = 0 is
-    // a double value, any basis of the plane.
+    // The 2 x 2 problem [m00 m01; m01 m11] in the basis (u, w).
     const T h = 0.5 * (m11 - m00), mean = 0.5 * (m00 + m11);
-    const T g = lane_sqrt(h * h + m01 * m01);
-    const auto split = g > 0.0;
-    const T k = lane_select(split, 1.0 / lane_sqrt(2.0 * g * (g + lane_abs(h))), zero);
-    const T s0 = lane_select(split, m01 * k, zero),
-            s1 = lane_select(split, (h + lane_copysign(g, h)) * k, one);
+    T g, s0, s1;
+    rotation_2x2(h, m01, g, s0, s1);
     // side = s0 u + s1 w belongs to mean + sign(h) g; other = s1 u - s0 w to
     // mean - sign(h) g.
     out.q = q;
@@ -287,11 +296,9 @@ inline bool is_multiple_of_identity(const Mat3 &a) {
 inline bool is_plane(const Mat3 &a) { return a(0, 2) == 0.0 && a(1, 2) == 0.0; }
 
 // The decomposition of a plane matrix (is_plane): the value a(2, 2) on the
-// axis e_z and the in-plane block [a00 a01; a01 a11] in closed form, as the
-// 2 x 2 problem of unordered_eigen: values mean +- g, g = hypot(h, a01),
-// h = (a11 - a00) / 2, and the vector of the value on h's side (a01, h +
-// sign(h) g), without cancellation. The block's values have the absolute
-// error of a few round-offs of its largest entry (backward stable).
+// axis e_z and the in-plane block [a00 a01; a01 a11] in closed form
+// (rotation_2x2). The block's values have the absolute error of a few
+// round-offs of its largest entry (backward stable).
 inline void plane_eigen(const Mat3 &a, SymmetricEigen &out) {
     if (is_multiple_of_identity(a)) { // q I has any basis: the axes
         out.values.setConstant(a(0, 0));
@@ -311,16 +318,11 @@ inline void plane_eigen(const Mat3 &a, SymmetricEigen &out) {
         hs = h / m;
         bs = a01 / m;
     }
-    // NaN in h or a01 reaches gs (the maximum may have dropped it).
-    const double gs = std::sqrt(hs * hs + bs * bs), g = scale * gs;
-    double s0 = 0.0, s1 = 1.0; // g = 0: a double value, any basis of the plane
-    if (gs > 0.0) {
-        const double k = 1.0 / std::sqrt(2.0 * gs * (gs + std::abs(hs)));
-        s0 = bs * k;
-        s1 = (hs + std::copysign(gs, hs)) * k;
-    } else if (!(gs == 0.0)) {
-        s0 = s1 = gs; // NaN
-    }
+    // NaN in h or a01 reaches gs (the maximum may have dropped it), and
+    // from it the values.
+    double gs, s0, s1;
+    rotation_2x2(hs, bs, gs, s0, s1);
+    const double g = scale * gs;
     const double l[3] = {a(2, 2), mean + std::copysign(g, h), mean - std::copysign(g, h)};
     const double vec[3][3] = {{0.0, 0.0, 1.0}, {s0, s1, 0.0}, {s1, -s0, 0.0}};
     order_lane(0.0, 1.0, l, vec, /*identity=*/false, out);
