@@ -42,6 +42,8 @@ const CLI::Validator kPositive(
         double v = 0.0;
         try {
             v = std::stod(text, &used);
+        } catch (const std::out_of_range &) {
+            return "out of range, got " + text;
         } catch (const std::exception &) {
             used = 0;
         }
@@ -49,6 +51,31 @@ const CLI::Validator kPositive(
         return v > 0.0 ? std::string() : "must be greater than 0, got " + text;
     },
     "POSITIVE");
+
+// A thread count: a whole number from 1 to kMaxThreads (CLI11's own message
+// for 2.5 was "Could not convert: --threads = 2.5").
+const CLI::Validator kThreadCount(
+    [](std::string &text) -> std::string {
+        std::size_t used = 0;
+        long long n = 0;
+        try {
+            n = std::stoll(text, &used);
+        } catch (const std::out_of_range &) {
+            used = text.size();
+            n = text.find('-') == std::string::npos ? talus::kMaxThreads + 1LL : 0;
+        } catch (const std::exception &) {
+            used = 0;
+        }
+        if (used == 0 || used != text.size())
+            return "expected a whole number of threads, got '" + text + "'";
+        if (n <= 0) return "must be greater than 0, got " + text;
+        if (n > talus::kMaxThreads)
+            return fmt::format("at most {} threads, got {} (this machine lets talus run on {} "
+                               "processor(s))",
+                               talus::kMaxThreads, text, talus::Simulation::processors());
+        return std::string();
+    },
+    "COUNT");
 
 using namespace talus;
 
@@ -207,7 +234,7 @@ int main(int argc, char **argv) {
     run->add_option("--threads", threads,
                     "Number of threads, fixed (default: up to OpenMP's, all cores, each step on "
                     "as many as run fastest beside the machine's other load)")
-        ->check(kPositive);
+        ->check(kThreadCount);
     std::string run_plot, run_plot_field = "displacement";
     auto *plot_option =
         run->add_option("--plot", run_plot,

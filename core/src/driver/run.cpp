@@ -192,6 +192,12 @@ Prepared prepare_run(Scenario &sc, const SolverOptions &solver) {
                             "CMAKE_BUILD_TYPE=Release)",
                             m.name, lib.path().string()));
     }
+    if (solver.threads > Simulation::processors())
+        plan.notes.push_back(fmt::format(
+            "talus: note: --threads {} is more than the {} processor(s) this process may run on: "
+            "every step waits at its barriers for threads that share a core, so the run is slower "
+            "than with {} (the results are the same at any count)",
+            solver.threads, Simulation::processors(), Simulation::processors()));
     out.sim = std::make_unique<Simulation>(sc, solver);
     const Simulation &sim = *out.sim;
     plan.particles = sim.particle_count();

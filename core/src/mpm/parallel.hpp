@@ -27,6 +27,15 @@ inline int max_threads() {
 #endif
 }
 
+// Processors the process may run on (OpenMP reads its affinity mask).
+inline int processors() {
+#ifdef _OPENMP
+    return omp_get_num_procs();
+#else
+    return 1;
+#endif
+}
+
 inline int thread_index() {
 #ifdef _OPENMP
     return omp_get_thread_num();

@@ -213,13 +213,31 @@ Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options, const Sn
     arm_quiescence();
 }
 
+namespace {
+
+// The count asked for, or OpenMP's default (OMP_NUM_THREADS), within
+// kMaxThreads; checked before any parallel loop starts a team of them.
+void set_thread_count(int threads) {
+    if (threads > kMaxThreads)
+        throw Error(fmt::format("{} threads asked for: at most {} (this process may run on {} "
+                                "processor(s))",
+                                threads, kMaxThreads, par::processors()));
+    par::set_threads(threads);
+    if (par::max_threads() > kMaxThreads)
+        throw Error(fmt::format("OMP_NUM_THREADS asks for {} threads: at most {} (this process may "
+                                "run on {} processor(s))",
+                                par::max_threads(), kMaxThreads, par::processors()));
+}
+
+} // namespace
+
 Simulation::Simulation(const Scenario &scenario, SolverOptions options) {
-    par::set_threads(options.threads);
+    set_thread_count(options.threads);
     impl_ = std::make_unique<Impl>(scenario, options, nullptr);
 }
 
 Simulation::Simulation(const Scenario &scenario, SolverOptions options, const Snapshot &snapshot) {
-    par::set_threads(options.threads);
+    set_thread_count(options.threads);
     options.batch_size = snapshot.batch_size;
     options.sort_disorder = snapshot.sort_disorder;
     impl_ = std::make_unique<Impl>(scenario, options, &snapshot);
@@ -351,6 +369,7 @@ double Simulation::grid_mass() const {
 std::size_t Simulation::active_nodes() const { return impl_->grid.active().nodes(); }
 std::size_t Simulation::grid_nodes() const { return impl_->grid.n_nodes; }
 int Simulation::max_threads() { return par::max_threads(); }
+int Simulation::processors() { return par::processors(); }
 Simulation::ThreadUse Simulation::thread_use() const {
     if (!impl_->governor) return {};
     return {impl_->governor->steps_at(), impl_->governor->changes()};

@@ -149,3 +149,38 @@ TEST(Threads, AGovernedRunAccountsForItsStepsAndGivesTheThreadsBack) {
     }
     omp_set_num_threads(before);
 }
+
+// A thread count beyond kMaxThreads is refused before any parallel loop
+// starts a team of them (100,000 threads crashed inside libgomp's team
+// start), whether asked for in SolverOptions or by OMP_NUM_THREADS, whose
+// value omp_set_num_threads stands in for here.
+TEST(Threads, ACountBeyondTheLimitIsRefusedBeforeTheRun) {
+    const std::string yaml =
+        "talus: 1\ndimension: 2\ngrid: {origin: [0, 0], size: [1, 1], cell: 0.1}\n"
+        "materials:\n  m: {model: linear_elastic, density: 1000, youngs_modulus: 1.0e6, "
+        "poisson_ratio: 0.3}\n"
+        "groups:\n  a: {material: m, particles_per_cell: 2,\n"
+        "      shape: {box: {min: [0.2, 0.2], max: [0.8, 0.6]}}}\ntime: {end: 1}\n";
+    const int before = omp_get_max_threads();
+    auto s = talus::test::sim_from_text(yaml);
+    talus::SolverOptions opt;
+    opt.threads = talus::kMaxThreads + 1;
+    try {
+        talus::Simulation sim(s->scenario, opt);
+        ADD_FAILURE() << "no error for " << opt.threads << " threads";
+    } catch (const talus::Error &e) {
+        EXPECT_NE(std::string(e.what()).find("threads asked for: at most 4096"), std::string::npos)
+            << e.what();
+    }
+    EXPECT_EQ(omp_get_max_threads(), before); // nothing was set
+    omp_set_num_threads(talus::kMaxThreads + 1);
+    try {
+        talus::Simulation sim(s->scenario, talus::SolverOptions{});
+        ADD_FAILURE() << "no error for OpenMP's default of " << talus::kMaxThreads + 1;
+    } catch (const talus::Error &e) {
+        EXPECT_NE(std::string(e.what()).find("OMP_NUM_THREADS asks for 4097 threads"),
+                  std::string::npos)
+            << e.what();
+    }
+    omp_set_num_threads(before);
+}

@@ -48,8 +48,14 @@ struct ResourceEstimate {
 };
 ResourceEstimate estimate_resources(const Scenario &scenario);
 
+// The most threads a run takes. OpenMP's team start (libgomp) keeps data
+// for every thread on the starting thread's stack: 100,000 threads
+// overflowed it (a crash inside GOMP_parallel), and far below that each
+// step is already many times slower than on the cores there are.
+inline constexpr int kMaxThreads = 4096;
+
 struct SolverOptions {
-    int threads = 0;      // 0: OpenMP's default
+    int threads = 0;      // 0: OpenMP's default; at most kMaxThreads
     int batch_size = 128; // points per plugin call
     // Particles are re-sorted by cell when more than this fraction is far
     // out of cell order (more than two rows or planes of cells below the
@@ -205,6 +211,8 @@ class Simulation {
     std::array<int, 6> cell_box() const;
     // Threads the solver's parallel loops use.
     static int max_threads();
+    // Processors this process may run on (its affinity mask).
+    static int processors();
     // With SolverOptions::adapt_threads: the steps taken at each thread
     // count (index = count) and how often the count changed; steps_at is
     // empty without.
