@@ -228,7 +228,7 @@ struct MohrCoulomb {
     // The points of a chunk whose trial stress is clearly inside the
     // surface (clearly_elastic), finished in one loop without the SDK's
     // per-point set-up: most points of a batch (74 % of the 3D benchmark
-    // block's point-steps). The others go to update_pair() and update().
+    // block's point-steps). The others go to update_group() and update().
     void quick_update(const talus::sdk::Points &p) const {
         for (std::size_t k = 0; k < p.n; ++k) {
             Vec6 trial;
@@ -246,16 +246,20 @@ struct MohrCoulomb {
         if (p.wave_speed) talus::sdk::wave_speeds(p_wave_modulus(), p.density, p.wave_speed, p.n);
     }
 
-    // update() for two points, their decompositions side by side.
-    void update_pair(const talus::sdk::PointIn &in, talus::sdk::PointOut &out,
-                     const talus::sdk::PointIn &in2, talus::sdk::PointOut &out2) const {
-        const Vec6 trial = in.stress + hooke(in.strain_increment);
-        const Vec6 trial2 = in2.stress + hooke(in2.strain_increment);
-        Spectral sp, sp2;
-        talus::sdk::symmetric_eigen_pair(talus::sdk::stress_to_matrix(trial),
-                                         talus::sdk::stress_to_matrix(trial2), sp, sp2);
-        finish(in, out, trial, sp);
-        finish(in2, out2, trial2, sp2);
+    // update() for up to eight points, their decompositions together
+    // (eight a vector with AVX-512: symmetric_eigen_group).
+    void update_group(const talus::sdk::PointIn *const *in, talus::sdk::PointOut *const *out,
+                      std::size_t n) const {
+        std::array<Vec6, talus::sdk::kGroupSize> trial;
+        std::array<Mat3, talus::sdk::kGroupSize> m;
+        std::array<Spectral, talus::sdk::kGroupSize> sp;
+        for (std::size_t k = 0; k < n; ++k) {
+            trial[k] = in[k]->stress + hooke(in[k]->strain_increment);
+            m[k] = talus::sdk::stress_to_matrix(trial[k]);
+        }
+        talus::sdk::symmetric_eigen_group(m.data(), sp.data(), n);
+        for (std::size_t k = 0; k < n; ++k)
+            finish(*in[k], *out[k], trial[k], sp[k]);
     }
 
     void update(const talus::sdk::PointIn &in, talus::sdk::PointOut &out) const {

@@ -553,3 +553,91 @@ TEST(Loader, SdkBatchLoopQuickPassPairsAndTheFailingPoint) {
     EXPECT_EQ(r.point, 5);
     EXPECT_TRUE(contains(r.message, "exception at point 5: point 1005 refuses")) << r.message;
 }
+
+// The same with a group update: the points the quick pass leaves go to
+// update_group in order, kGroupSize (8) at a time and the rest of a chunk
+// as one smaller group, a lone last point to update; in place as well as
+// not. A failure inside a group names the point that failed.
+TEST(Loader, SdkBatchLoopGroupsAndTheFailingPoint) {
+    talus::PluginRegistry reg;
+    const talus::Model &m = reg.load(fixture("groups_sdk").string()).models()[0];
+    const double p[] = {1e6};
+    const auto inst = m.create(p);
+    const std::size_t n = 150; // chunks of 64, 64 and 22
+    std::vector<double> de(6 * n, 0.0), F(9 * n, 0.0), rho(n, 1000.0), c(n, 0.0);
+    std::vector<std::int64_t> ids(n);
+    std::vector<double> tag(n);
+    for (std::size_t k = 0; k < n; ++k) {
+        // Every third point is quick, and from 128 on every other: the
+        // last chunk leaves 11 points (a group of 8, one of 3).
+        de[6 * k] = (k < 128 ? k % 3 == 0 : k % 2 == 0) ? 0.0 : 1e-4;
+        for (int i = 0; i < 3; ++i)
+            F[9 * k + 4 * static_cast<std::size_t>(i)] = 1.0;
+        ids[k] = static_cast<std::int64_t>(k) + 1000;
+        tag[k] = static_cast<double>(k);
+    }
+    auto run = [&](bool in_place, std::vector<double> &s1, std::vector<double> &q1) {
+        std::vector<double> s0(6 * n, 0.0), q0 = tag;
+        s1.assign(6 * n, -1.0);
+        q1.assign(n, -1.0);
+        talus_batch b{};
+        b.flags = TALUS_BATCH_WANT_WAVE_SPEED;
+        b.n_points = n;
+        b.dt = 1.0;
+        b.strain_increment = de.data();
+        b.F_start = F.data();
+        b.F_end = F.data();
+        b.density = rho.data();
+        b.stress_start = in_place ? s1.data() : s0.data();
+        b.state_start = in_place ? q1.data() : q0.data();
+        b.stress_end = s1.data();
+        b.state_end = q1.data();
+        b.wave_speed = c.data();
+        b.point_id = ids.data();
+        if (in_place) {
+            std::fill(s1.begin(), s1.end(), 0.0);
+            q1 = tag;
+        }
+        return inst->update(b);
+    };
+    for (const bool in_place : {false, true}) {
+        SCOPED_TRACE(in_place ? "in place" : "separate arrays");
+        std::vector<double> s1, q1;
+        const auto r = run(in_place, s1, q1);
+        ASSERT_TRUE(r.ok()) << r.message;
+        std::size_t groups_seen = 0;
+        for (std::size_t c0 = 0; c0 < n; c0 += 64) {
+            std::vector<std::size_t> rest;
+            for (std::size_t k = c0; k < std::min(n, c0 + 64); ++k)
+                if (de[6 * k] != 0.0) rest.push_back(k);
+            // Groups of 8 from the chunk's start, the remainder one group.
+            for (std::size_t j = 0; j < rest.size(); ++j) {
+                const std::size_t size = std::min<std::size_t>(8, rest.size() - j / 8 * 8);
+                if (size == 1) {
+                    EXPECT_EQ(s1[6 * rest[j]], 3.0) << rest[j];
+                } else {
+                    EXPECT_EQ(s1[6 * rest[j]], 4.0) << rest[j];
+                    EXPECT_EQ(s1[6 * rest[j] + 2], static_cast<double>(size)) << rest[j];
+                    groups_seen += j % 8 == 0;
+                }
+            }
+        }
+        EXPECT_EQ(groups_seen, 6u + 6u + 2u); // 42, 43 and 11 points left
+        for (std::size_t k = 0; k < n; ++k) {
+            if (de[6 * k] == 0.0) {
+                EXPECT_EQ(s1[6 * k], 1.0) << k;
+            }
+            EXPECT_EQ(s1[6 * k + 1], tag[k]) << k; // the start state, whichever path
+            EXPECT_EQ(q1[k], tag[k] + 100.0) << k;
+            EXPECT_EQ(c[k], 1.0) << k;
+        }
+    }
+    // Point 11 is the last of the first chunk's first group (the points
+    // left: 1 2 4 5 7 8 10 11 ...).
+    de[6 * 11 + 1] = 1.0;
+    std::vector<double> s1, q1;
+    const auto r = run(false, s1, q1);
+    EXPECT_EQ(r.status, TALUS_STATUS_FAILED);
+    EXPECT_EQ(r.point, 11);
+    EXPECT_TRUE(contains(r.message, "exception at point 11: point 1011 refuses")) << r.message;
+}

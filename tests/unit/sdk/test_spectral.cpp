@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <limits>
 #include <random>
@@ -229,6 +230,71 @@ TEST(SymmetricEigen, PairLanesAreTheSingleDecompositionBitForBit) {
     talus::sdk::symmetric_eigen_pair(m[3], m[4], a, b);
     EXPECT_LE((a.compose(a.values) - m[3]).cwiseAbs().maxCoeff(), kTol * 1e4);
     EXPECT_LE((b.compose(b.values) - m[4]).cwiseAbs().maxCoeff(), kTol * 1e4);
+}
+
+// symmetric_eigen_group: every matrix of a group of 1 to 8 is the single
+// decomposition bit for bit, whichever path took it (the AVX-512 lanes
+// where this processor has them and the group has four general matrices
+// or more, else the pairs; the test runs both), beside special matrices
+// (scaled, multiples of the identity, NaN, plane) in any lane.
+TEST(SymmetricEigen, GroupsAreTheSingleDecompositionBitForBit) {
+    std::mt19937 gen(17);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    std::vector<Mat3> pool;
+    for (int k = 0; k < 400; ++k) {
+        Mat3 a;
+        for (int i = 0; i < 3; ++i)
+            for (int j = i; j < 3; ++j)
+                a(i, j) = a(j, i) = 1e4 * u(gen);
+        pool.push_back(a);
+    }
+    const Mat3 r = random_rotation(gen);
+    std::vector<Mat3> special{r * V3(2.0, 1.0, 1.0).asDiagonal() * r.transpose(), 1e-70 * pool[0],
+                              1e70 * pool[1], -3.5 * Mat3::Identity(), Mat3::Zero()};
+    Mat3 nan = pool[2];
+    nan(0, 2) = nan(2, 0) = std::numeric_limits<double>::quiet_NaN();
+    special.push_back(nan);
+    Mat3 plane = pool[3];
+    plane(0, 2) = plane(2, 0) = plane(1, 2) = plane(2, 1) = 0.0;
+    special.push_back(plane);
+    auto same = [](const talus::sdk::SymmetricEigen &a, const talus::sdk::SymmetricEigen &b) {
+        return std::memcmp(a.values.data(), b.values.data(), sizeof(double) * 3) == 0 &&
+               std::memcmp(a.vectors.data(), b.vectors.data(), sizeof(double) * 9) == 0;
+    };
+    bool &octet = talus::sdk::detail::octet_enabled();
+    const bool has_octet = octet;
+    std::size_t next = 0;
+    for (const bool use_octet : {true, false}) {
+        octet = use_octet && has_octet;
+        for (std::size_t n = 1; n <= talus::sdk::kEigenGroup; ++n)
+            for (int trial = 0; trial < 40; ++trial) {
+                Mat3 m[talus::sdk::kEigenGroup];
+                for (std::size_t k = 0; k < n; ++k)
+                    m[k] = pool[next++ % pool.size()];
+                // One special matrix in a lane that moves with the trial.
+                if (trial % 2 == 1)
+                    m[static_cast<std::size_t>(trial) % n] =
+                        special[static_cast<std::size_t>(trial / 2) % special.size()];
+                talus::sdk::SymmetricEigen e[talus::sdk::kEigenGroup];
+                talus::sdk::symmetric_eigen_group(m, e, n);
+                for (std::size_t k = 0; k < n; ++k) {
+                    const talus::sdk::SymmetricEigen one = talus::sdk::symmetric_eigen(m[k]);
+                    EXPECT_TRUE(same(e[k], one)) << "group of " << n << ", lane " << k
+                                                 << (octet ? " (AVX-512)" : " (pairs)");
+                    EXPECT_EQ(e[k].values.hasNaN(), m[k].hasNaN()) << n << " " << k;
+                }
+            }
+    }
+    octet = has_octet;
+    // And a lane's result is its own matrix's (kTol relative to 1e4).
+    Mat3 m[8];
+    for (std::size_t k = 0; k < 8; ++k)
+        m[k] = pool[k];
+    talus::sdk::SymmetricEigen e[8];
+    talus::sdk::symmetric_eigen_group(m, e, 8);
+    for (std::size_t k = 0; k < 8; ++k)
+        EXPECT_LE((e[k].compose(e[k].values) - m[k]).cwiseAbs().maxCoeff(), kTol * 1e4) << k;
+    if (!has_octet) std::printf("note: no AVX-512 here; the groups ran as pairs only\n");
 }
 
 // Compilers without vector extensions run the same source over doubles:

@@ -22,6 +22,9 @@
 //       void quick_update(const talus::sdk::Points &p) const;
 //       void update_pair(const talus::sdk::PointIn &a, talus::sdk::PointOut &oa,
 //                        const talus::sdk::PointIn &b, talus::sdk::PointOut &ob) const;
+//       // or update for 2 to kGroupSize of them (taken over update_pair)
+//       void update_group(const talus::sdk::PointIn *const *in,
+//                         talus::sdk::PointOut *const *out, std::size_t n) const;
 //   };
 //   TALUS_MATERIAL_LIBRARY("my_library", "1.0.0", MyModel)
 //
@@ -46,6 +49,7 @@
 #include <exception>
 #include <limits>
 #include <new>
+#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -323,7 +327,8 @@ struct PointOut {
 // this file), which finishes the points it can finish cheaply (a model's
 // common case: an elastic step) in a loop over the chunk's arrays, without
 // the per-point set-up of update(); the others go to update(), or in pairs
-// to update_pair(). Each point's result must be what update() gives it,
+// to update_pair(), or in groups of up to kGroupSize to update_group(). Each
+// point's result must be what update() gives it,
 // whatever its neighbours. Arrays of n points, point after point (6 strain or stress
 // components, the model's state values, 36 tangent entries row-major).
 // state_end holds a copy of the start state on entry. A point the pass
@@ -334,6 +339,10 @@ struct PointOut {
 // wave_speed and tangent entries may be written, update() overwrites them.
 // The pass must not throw (a failure would name the chunk's first point):
 // a point it cannot finish is left to update().
+// The most points update_group() gets at once (eight: the decompositions
+// of spectral.hpp's symmetric_eigen_group fill one AVX-512 vector).
+inline constexpr std::size_t kGroupSize = 8;
+
 struct Points {
     static constexpr std::size_t kMaxSize = 64;
     std::size_t n = 0;
@@ -481,6 +490,10 @@ struct Descriptors {
     };
     static constexpr bool has_pair_update = requires(const M &m, const PointIn &in, PointOut &out) {
         m.update_pair(in, out, in, out);
+    };
+    static constexpr bool has_group_update =
+        requires(const M &m, const PointIn *const *in, PointOut *const *out, std::size_t n) {
+        m.update_group(in, out, n);
     };
     // What the batch gives every point, read once per batch.
     struct Context {
@@ -726,7 +739,34 @@ struct Descriptors {
                         for (std::size_t k = 0; k < m; ++k)
                             if (!done[k]) rest[n_rest++] = static_cast<std::uint32_t>(c0 + k);
                         std::size_t j = 0;
-                        if constexpr (has_pair_update)
+                        if constexpr (has_group_update)
+                            while (j + 1 < n_rest) {
+                                const std::size_t g = std::min(kGroupSize, n_rest - j);
+                                std::optional<Slot> slots[kGroupSize];
+                                const PointIn *ins[kGroupSize];
+                                PointOut *outs[kGroupSize];
+                                for (std::size_t k = 0; k < g; ++k) {
+                                    slots[k].emplace(ctx, rest[j + k]);
+                                    ins[k] = &slots[k]->in;
+                                    outs[k] = &slots[k]->out;
+                                }
+                                i = rest[j];
+                                try {
+                                    self.update_group(ins, outs, g);
+                                } catch (...) {
+                                    // As for a pair: each alone, so that
+                                    // the failure names its point.
+                                    for (std::size_t k = 0; k < g; ++k) {
+                                        i = rest[j + k];
+                                        self.update(slots[k]->in, slots[k]->out);
+                                    }
+                                    throw;
+                                }
+                                for (std::size_t k = 0; k < g; ++k)
+                                    commit(*slots[k], rest[j + k]);
+                                j += g;
+                            }
+                        else if constexpr (has_pair_update)
                             for (; j + 1 < n_rest; j += 2) {
                                 i = rest[j];
                                 Slot slot(ctx, rest[j]), other(ctx, rest[j + 1]);

@@ -33,8 +33,23 @@
 #include <cmath>
 #include <limits>
 
+#include <cstddef>
+
 #if defined(__SSE2__)
 #include <emmintrin.h>
+#endif
+
+// Eight decompositions a vector where the processor has AVX-512 (F and
+// DQ), chosen at run time; GCC on x86-64 only (the region below needs its
+// target and optimize pragmas). Elsewhere, and on other processors, the
+// lane pairs.
+// Not where the model's own build may fuse multiplies and adds (an FMA
+// target: -march=native and the like), since the other paths then round
+// differently from these lanes.
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && __GNUC__ >= 10 &&           \
+    !defined(__FMA__)
+#define TALUS_SDK_HAS_OCTET 1
+#include <immintrin.h>
 #endif
 
 namespace talus::sdk {
@@ -108,156 +123,7 @@ inline double lane_copysign(double magnitude, double sign) {
     return std::copysign(magnitude, sign);
 }
 inline double lane_sqrt(double x) { return std::sqrt(x); }
-// std::max's and std::clamp's comparisons (the same NaN behaviour).
-template <class T>
-T lane_max(T a, T b) {
-    return lane_select(a < b, b, a);
-}
-template <class T>
-T lane_clamp(T v, T lo, T hi) {
-    return lane_select(v < lo, lo, lane_select(hi < v, hi, v));
-}
-
-// The largest root of y^3 - 3 y - 2 s for s in [0, 1], in [sqrt(3), 2]
-// (2 cos(acos(s) / 3), Smith's formula, without its acos and cos): a
-// least-squares quintic in s (within 1.2e-6 on [0, 1]) and one step of
-// Halley's method, whose error is about the cube of the start's (the
-// derivative 3 y^2 - 3 is at least 6 there): within an ulp at 20001
-// points of [0, 1], tested against Smith's formula.
-template <class T>
-T largest_cubic_root(T s) {
-    // Estrin's scheme: three independent pairs, then two levels.
-    const T s2 = s * s, s4 = s2 * s2;
-    const T y = (1.7320519648963821 + 0.3332451278684757 * s) +
-                s2 * (-0.095107251581874 + 0.043955570613302984 * s) +
-                s4 * (-0.018108343307837876 + 0.003963812960511424 * s);
-    const T f = y * (y * y - 3.0) - 2.0 * s, d1 = 3.0 * (y * y - 1.0), d2 = 6.0 * y;
-    return y - 2.0 * f * d1 / (2.0 * d1 * d1 - f * d2);
-}
-
-// The 2 x 2 symmetric problem [m00 b; b m11] with h = (m11 - m00) / 2, in
-// closed form: its values are the mean +- g, g = hypot(h, b), and (s0, s1)
-// the unit vector of the value on h's side, mean + sign(h) g: (b, h +
-// sign(h) g) normalised, whose second component has no cancellation (its
-// norm^2 is 2 g (g + |h|)). g = 0 is a double value, any basis: (0, 1).
-// The other value's vector is (s1, -s0).
-template <class T>
-void rotation_2x2(T h, T b, T &g, T &s0, T &s1) {
-    const T zero = T(), one = zero + 1.0;
-    g = lane_sqrt(h * h + b * b);
-    const auto split = g > 0.0;
-    const T k = lane_select(split, 1.0 / lane_sqrt(2.0 * g * (g + lane_abs(h))), zero);
-    s0 = lane_select(split, b * k, zero);
-    s1 = lane_select(split, (h + lane_copysign(g, h)) * k, one);
-}
-
-// The decomposition of the lanes of C = A - q I (upper triangle c..), up to
-// the ordering: the values l[3] (Rayleigh quotients of C, unscaled) and
-// their vectors vec[3][3], per lane.
-template <class T>
-struct Unordered {
-    T q, scale;
-    T l[3];
-    T vec[3][3];
-};
-
-template <class T>
-Unordered<T> unordered_eigen(T a00, T a11, T a22, T a01, T a02, T a12) {
-    Unordered<T> out;
-    // Products by the constants 1/3 and 1/6 rather than divisions: these
-    // start the chain of dependent operations. (Any shift q serves; p2 only
-    // scales the cubic.)
-    const T q = (a00 + a11 + a22) * (1.0 / 3.0);
-    T c00 = a00 - q, c11 = a11 - q, c22 = a22 - q;
-    T c01 = a01, c02 = a02, c12 = a12;
-    const T m =
-        lane_max(lane_max(lane_max(lane_max(lane_max(lane_abs(c00), lane_abs(c11)), lane_abs(c22)),
-                                   lane_abs(c01)),
-                          lane_abs(c02)),
-                 lane_abs(c12));
-    // The squares of squares below (the cross products' norms, ~m^4)
-    // neither under- nor overflow for m in [1e-60, 1e60]; beyond, C is
-    // scaled to m = 1 (rarely: that division is then on the critical path;
-    // a lane in range is multiplied by 1, which changes no bit).
-    const T one = T() + 1.0, zero = T();
-    T scale = one;
-    const auto out_of_range = lane_not(lane_and(m > 1e-60, m < 1e60));
-    if (lane_any(out_of_range)) {
-        scale = lane_select(out_of_range, m, one);
-        const T inv = lane_select(out_of_range, 1.0 / m, one);
-        c00 *= inv;
-        c11 *= inv;
-        c22 *= inv;
-        c01 *= inv;
-        c02 *= inv;
-        c12 *= inv;
-    }
-    const T p2 = (c00 * c00 + c11 * c11 + c22 * c22 + 2.0 * (c01 * c01 + c02 * c02 + c12 * c12)) *
-                 (1.0 / 6.0);
-    const T p = lane_sqrt(p2);
-    const T det = c00 * (c11 * c22 - c12 * c12) - c01 * (c01 * c22 - c12 * c02) +
-                  c02 * (c01 * c12 - c11 * c02);
-    // det(C / p) / 2 in [-1, 1] (up to round-off), as det p / (2 p2^2) so
-    // that the square root and the division run side by side; for det < 0
-    // the largest root of -C's cubic, negated.
-    const T r = lane_clamp(det * p * (1.0 / (2.0 * p2 * p2)), -one, one);
-    const T x = lane_copysign(largest_cubic_root(lane_abs(r)) * p, r);
-    // The rows of C - x I; their largest cross product is along the vector.
-    const T d0 = c00 - x, d1 = c11 - x, d2 = c22 - x;
-    // r0 x r1, r0 x r2, r1 x r2 for the rows r0 = (d0, c01, c02), r1 =
-    // (c01, d1, c12), r2 = (c02, c12, d2).
-    const T a0 = c01 * c12 - c02 * d1, a1 = c02 * c01 - d0 * c12, a2 = d0 * d1 - c01 * c01;
-    const T b0 = c01 * d2 - c02 * c12, b1 = c02 * c02 - d0 * d2, b2 = d0 * c12 - c01 * c02;
-    const T e0 = d1 * d2 - c12 * c12, e1 = c12 * c02 - c01 * d2, e2 = c01 * c12 - d1 * c02;
-    const T na = a0 * a0 + a1 * a1 + a2 * a2, nb = b0 * b0 + b1 * b1 + b2 * b2,
-            ne = e0 * e0 + e1 * e1 + e2 * e2;
-    const auto pick_a = lane_and(na >= nb, na >= ne), pick_b = lane_and(lane_not(pick_a), nb >= ne);
-    const T y0 = lane_select(pick_a, a0, lane_select(pick_b, b0, e0));
-    const T y1 = lane_select(pick_a, a1, lane_select(pick_b, b1, e1));
-    const T y2 = lane_select(pick_a, a2, lane_select(pick_b, b2, e2));
-    const T ny = lane_select(pick_a, na, lane_select(pick_b, nb, ne));
-    // An orthonormal basis u, w of the plane normal to v = y / |y|: u
-    // leaves out a component of y that is not the largest, so its norm is
-    // at least |y| / sqrt(2). Both norms from y, so that their square roots
-    // run side by side.
-    const auto drop1 = lane_abs(y0) > lane_abs(y1);
-    const T iy = 1.0 / lane_sqrt(ny);
-    const T iu = 1.0 / lane_sqrt(lane_select(drop1, y0 * y0, y1 * y1) + y2 * y2);
-    const T v0 = y0 * iy, v1 = y1 * iy, v2 = y2 * iy;
-    const T u0 = lane_select(drop1, -y2 * iu, zero), u1 = lane_select(drop1, zero, y2 * iu),
-            u2 = lane_select(drop1, y0 * iu, -y1 * iu);
-    const T w0 = v1 * u2 - v2 * u1, w1 = v2 * u0 - v0 * u2, w2 = v0 * u1 - v1 * u0;
-    // C u, C w, C v and the Rayleigh quotients.
-    const T cu0 = c00 * u0 + c01 * u1 + c02 * u2, cu1 = c01 * u0 + c11 * u1 + c12 * u2,
-            cu2 = c02 * u0 + c12 * u1 + c22 * u2;
-    const T cw0 = c00 * w0 + c01 * w1 + c02 * w2, cw1 = c01 * w0 + c11 * w1 + c12 * w2,
-            cw2 = c02 * w0 + c12 * w1 + c22 * w2;
-    const T cv0 = c00 * v0 + c01 * v1 + c02 * v2, cv1 = c01 * v0 + c11 * v1 + c12 * v2,
-            cv2 = c02 * v0 + c12 * v1 + c22 * v2;
-    const T m00 = u0 * cu0 + u1 * cu1 + u2 * cu2, m01 = u0 * cw0 + u1 * cw1 + u2 * cw2,
-            m11 = w0 * cw0 + w1 * cw1 + w2 * cw2, lv = v0 * cv0 + v1 * cv1 + v2 * cv2;
-    // The 2 x 2 problem [m00 m01; m01 m11] in the basis (u, w).
-    const T h = 0.5 * (m11 - m00), mean = 0.5 * (m00 + m11);
-    T g, s0, s1;
-    rotation_2x2(h, m01, g, s0, s1);
-    // side = s0 u + s1 w belongs to mean + sign(h) g; other = s1 u - s0 w to
-    // mean - sign(h) g.
-    out.q = q;
-    out.scale = scale;
-    out.l[0] = lv;
-    out.l[1] = mean + lane_copysign(g, h);
-    out.l[2] = mean - lane_copysign(g, h);
-    out.vec[0][0] = v0;
-    out.vec[0][1] = v1;
-    out.vec[0][2] = v2;
-    out.vec[1][0] = s0 * u0 + s1 * w0;
-    out.vec[1][1] = s0 * u1 + s1 * w1;
-    out.vec[1][2] = s0 * u2 + s1 * w2;
-    out.vec[2][0] = s1 * u0 - s0 * w0;
-    out.vec[2][1] = s1 * u1 - s0 * w1;
-    out.vec[2][2] = s1 * u2 - s0 * w2;
-    return out;
-}
+#include "talus/sdk/detail/spectral_kernel.inc"
 
 // One lane's result, ordered. `identity`: C = 0 (q I has any basis).
 inline void order_lane(double q, double scale, const double l[3], const double vec[3][3],
@@ -332,6 +198,91 @@ inline void plane_eigen(const Mat3 &a, SymmetricEigen &out) {
 
 namespace detail {
 
+// Up to eight matrices' upper triangles (a00, a11, a22, a01, a02, a12, one
+// array of eight per entry; unused lanes hold anything finite) and their
+// unordered decompositions, one lane each.
+struct OctetIn {
+    double a[6][8];
+};
+struct OctetOut {
+    double q[8], scale[8], l[3][8], vec[3][3][8];
+};
+
+} // namespace detail
+} // namespace talus::sdk
+
+#if defined(TALUS_SDK_HAS_OCTET)
+// The lane code again, compiled for AVX-512 with eight doubles a vector.
+// Without contraction: with an AVX-512 target GCC fuses multiplies and
+// adds (also under -std=c++20), which would round differently from the
+// SSE2 pair and the scalar code; without it every lane's operations are
+// theirs, so a matrix has the same bits whichever path decomposed it.
+#pragma GCC push_options
+#pragma GCC target("avx512f,avx512dq")
+#pragma GCC optimize("fp-contract=off")
+namespace talus::sdk::detail::octet {
+
+using Lanes = double __attribute__((vector_size(64)));
+using LanesMask = decltype(Lanes{} < Lanes{});
+
+inline Lanes lane_select(LanesMask c, Lanes a, Lanes b) {
+    return (Lanes)(((LanesMask)a & c) | ((LanesMask)b & ~c));
+}
+inline LanesMask lane_and(LanesMask a, LanesMask b) { return a & b; }
+inline LanesMask lane_not(LanesMask a) { return ~a; }
+inline bool lane_any(LanesMask a) { return _mm512_test_epi64_mask((__m512i)a, (__m512i)a) != 0; }
+inline Lanes lane_abs(Lanes x) {
+    return (Lanes)((LanesMask)x & (LanesMask{} + 0x7fffffffffffffffLL));
+}
+inline Lanes lane_copysign(Lanes magnitude, Lanes sign) {
+    const LanesMask bit = LanesMask{} + static_cast<long long>(0x8000000000000000ULL);
+    return (Lanes)(((LanesMask)magnitude & ~bit) | ((LanesMask)sign & bit));
+}
+// All lanes (the masked form: the plain one starts from an undefined
+// vector, which GCC 12 reports as used uninitialised).
+inline Lanes lane_sqrt(Lanes x) { return (Lanes)_mm512_mask_sqrt_pd((__m512d)x, 0xff, (__m512d)x); }
+
+#include "talus/sdk/detail/spectral_kernel.inc"
+
+inline void unordered_octet(const OctetIn &in, OctetOut &out) {
+    Lanes e[6];
+    for (int c = 0; c < 6; ++c)
+        e[c] = (Lanes)_mm512_loadu_pd(in.a[c]);
+    const Unordered<Lanes> u = unordered_eigen<Lanes>(e[0], e[1], e[2], e[3], e[4], e[5]);
+    _mm512_storeu_pd(out.q, (__m512d)u.q);
+    _mm512_storeu_pd(out.scale, (__m512d)u.scale);
+    for (int i = 0; i < 3; ++i) {
+        _mm512_storeu_pd(out.l[i], (__m512d)u.l[i]);
+        for (int j = 0; j < 3; ++j)
+            _mm512_storeu_pd(out.vec[i][j], (__m512d)u.vec[i][j]);
+    }
+}
+
+} // namespace talus::sdk::detail::octet
+#pragma GCC pop_options
+#endif
+
+namespace talus::sdk::detail {
+
+// Whether this processor runs the AVX-512 lanes (read once). A test may
+// turn them off to compare the paths.
+inline bool &octet_enabled() {
+#if defined(TALUS_SDK_HAS_OCTET)
+    static bool on = [] {
+        __builtin_cpu_init();
+        return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq");
+    }();
+#else
+    static bool on = false;
+#endif
+    return on;
+}
+
+} // namespace talus::sdk::detail
+
+namespace talus::sdk {
+namespace detail {
+
 // The decompositions of a and b, side by side where the compiler has the
 // lane pair; eb may be null (a alone).
 inline void general_eigen_lanes(const Mat3 &a, const Mat3 &b, SymmetricEigen &ea,
@@ -395,6 +346,61 @@ inline SymmetricEigen symmetric_eigen(const Mat3 &a) {
 inline void symmetric_eigen_pair(const Mat3 &a, const Mat3 &b, SymmetricEigen &ea,
                                  SymmetricEigen &eb) {
     detail::symmetric_eigen_lanes(a, b, ea, &eb);
+}
+
+// The most matrices symmetric_eigen_group takes.
+inline constexpr std::size_t kEigenGroup = 8;
+
+// The ordered spectral decompositions of the n <= kEigenGroup symmetric
+// matrices a[0..n) into out[0..n): each bit for bit what symmetric_eigen
+// gives for it. Plane matrices in closed form, the others two at a time,
+// or, from four of them on, on a processor with AVX-512 (F, DQ), eight a
+// vector: about half the cost of the pairs per matrix (for models that
+// take points in groups, material.hpp).
+inline void symmetric_eigen_group(const Mat3 *a, SymmetricEigen *out, std::size_t n) {
+    std::size_t general[kEigenGroup];
+    std::size_t ng = 0;
+    for (std::size_t k = 0; k < n && k < kEigenGroup; ++k) {
+        if (detail::is_plane(a[k]))
+            detail::plane_eigen(a[k], out[k]);
+        else
+            general[ng++] = k;
+    }
+#if defined(TALUS_SDK_HAS_OCTET)
+    // Below four the pairs cost less than a vector of eight.
+    if (ng >= 4 && detail::octet_enabled()) {
+        detail::OctetIn in;
+        for (std::size_t lane = 0; lane < kEigenGroup; ++lane) {
+            // Idle lanes repeat the last matrix: lanes do not mix.
+            const Mat3 &m = a[general[std::min(lane, ng - 1)]];
+            in.a[0][lane] = m(0, 0);
+            in.a[1][lane] = m(1, 1);
+            in.a[2][lane] = m(2, 2);
+            in.a[3][lane] = m(0, 1);
+            in.a[4][lane] = m(0, 2);
+            in.a[5][lane] = m(1, 2);
+        }
+        detail::OctetOut o;
+        detail::octet::unordered_octet(in, o);
+        for (std::size_t lane = 0; lane < ng; ++lane) {
+            double l[3], vec[3][3];
+            for (int i = 0; i < 3; ++i) {
+                l[i] = o.l[i][lane];
+                for (int j = 0; j < 3; ++j)
+                    vec[i][j] = o.vec[i][j][lane];
+            }
+            const std::size_t k = general[lane];
+            detail::order_lane(o.q[lane], o.scale[lane], l, vec,
+                               detail::is_multiple_of_identity(a[k]), out[k]);
+        }
+        return;
+    }
+#endif
+    std::size_t g = 0;
+    for (; g + 1 < ng; g += 2)
+        detail::general_eigen_lanes(a[general[g]], a[general[g + 1]], out[general[g]],
+                                    &out[general[g + 1]]);
+    if (g < ng) detail::general_eigen_lanes(a[general[g]], a[general[g]], out[general[g]], nullptr);
 }
 
 } // namespace talus::sdk
