@@ -473,6 +473,91 @@ TEST(Loader, CheckParameterExplainsBounds) {
     EXPECT_EQ(talus::check_parameter(n, NAN), "expected a finite number");
 }
 
+namespace {
+
+// A batch of n points for the path fixtures (pairs_sdk, groups_sdk): the
+// points quick(k) picks have a zero strain increment (the quick pass takes
+// them), the others 1e-4 along x; F = I, density 1000, state: the tag k,
+// ids k + 1000.
+struct PathBatch {
+    std::size_t n;
+    std::vector<double> de, F, rho, c, tag;
+    std::vector<std::int64_t> ids;
+    template <class Quick>
+    PathBatch(std::size_t points, Quick quick)
+        : n(points), de(6 * n, 0.0), F(9 * n, 0.0), rho(n, 1000.0), c(n, 0.0), tag(n), ids(n) {
+        for (std::size_t k = 0; k < n; ++k) {
+            de[6 * k] = quick(k) ? 0.0 : 1e-4;
+            for (int i = 0; i < 3; ++i)
+                F[9 * k + 4 * static_cast<std::size_t>(i)] = 1.0;
+            ids[k] = static_cast<std::int64_t>(k) + 1000;
+            tag[k] = static_cast<double>(k);
+        }
+    }
+    // The batch through inst, in place or into separate end arrays: the
+    // end stresses in s1, the end states in q1.
+    template <class Instance>
+    auto run(const Instance &inst, bool in_place, std::vector<double> &s1,
+             std::vector<double> &q1) {
+        std::vector<double> s0(6 * n, 0.0), q0 = tag;
+        s1.assign(6 * n, -1.0);
+        q1.assign(n, -1.0);
+        talus_batch b{};
+        b.flags = TALUS_BATCH_WANT_WAVE_SPEED;
+        b.n_points = n;
+        b.dt = 1.0;
+        b.strain_increment = de.data();
+        b.F_start = F.data();
+        b.F_end = F.data();
+        b.density = rho.data();
+        b.stress_start = in_place ? s1.data() : s0.data();
+        b.state_start = in_place ? q1.data() : q0.data();
+        b.stress_end = s1.data();
+        b.state_end = q1.data();
+        b.wave_speed = c.data();
+        b.point_id = ids.data();
+        if (in_place) {
+            std::fill(s1.begin(), s1.end(), 0.0);
+            q1 = tag;
+        }
+        return inst.update(b);
+    }
+    // The points of the chunk from c0 (64 points) the quick pass leaves, in
+    // order.
+    std::vector<std::size_t> left_in_chunk(std::size_t c0) const {
+        std::vector<std::size_t> rest;
+        for (std::size_t k = c0; k < std::min(n, c0 + 64); ++k)
+            if (de[6 * k] != 0.0) rest.push_back(k);
+        return rest;
+    }
+    // What every path gives: the quick points' marker, the start state as
+    // the model saw it, the end state and the wave speed.
+    void expect_every_point(const std::vector<double> &s1, const std::vector<double> &q1) const {
+        for (std::size_t k = 0; k < n; ++k) {
+            if (de[6 * k] == 0.0) {
+                EXPECT_EQ(s1[6 * k], 1.0) << k;
+            }
+            EXPECT_EQ(s1[6 * k + 1], tag[k]) << k;
+            EXPECT_EQ(q1[k], tag[k] + 100.0) << k;
+            EXPECT_EQ(c[k], 1.0) << k;
+        }
+    }
+    // A failing point (strain increment[1] > 0) is reported by its index.
+    template <class Instance>
+    void expect_failure_named(const Instance &inst, std::size_t k) {
+        de[6 * k + 1] = 1.0;
+        std::vector<double> s1, q1;
+        const auto r = run(inst, false, s1, q1);
+        EXPECT_EQ(r.status, TALUS_STATUS_FAILED);
+        EXPECT_EQ(r.point, static_cast<std::int64_t>(k));
+        const std::string want = "exception at point " + std::to_string(k) + ": point " +
+                                 std::to_string(k + 1000) + " refuses";
+        EXPECT_NE(r.message.find(want), std::string::npos) << r.message;
+    }
+};
+
+} // namespace
+
 // The SDK's batch loop with a model's optional quick pass and pair update
 // (the fixture's outputs say which path each point took): the quick pass
 // sees each chunk of at most 64 points with the end state already a copy
@@ -485,73 +570,25 @@ TEST(Loader, SdkBatchLoopQuickPassPairsAndTheFailingPoint) {
     const talus::Model &m = reg.load(fixture("pairs_sdk").string()).models()[0];
     const double p[] = {1e6};
     const auto inst = m.create(p);
-    const std::size_t n = 150; // chunks of 64, 64 and 22
-    std::vector<double> de(6 * n, 0.0), F(9 * n, 0.0), rho(n, 1000.0), c(n, 0.0);
-    std::vector<std::int64_t> ids(n);
-    std::vector<double> tag(n);
-    for (std::size_t k = 0; k < n; ++k) {
-        de[6 * k] = k % 3 == 0 ? 0.0 : 1e-4; // every third point is quick
-        for (int i = 0; i < 3; ++i)
-            F[9 * k + 4 * static_cast<std::size_t>(i)] = 1.0;
-        ids[k] = static_cast<std::int64_t>(k) + 1000;
-        tag[k] = static_cast<double>(k);
-    }
-    auto run = [&](bool in_place, std::vector<double> &s1, std::vector<double> &q1) {
-        std::vector<double> s0(6 * n, 0.0), q0 = tag;
-        s1.assign(6 * n, -1.0);
-        q1.assign(n, -1.0);
-        talus_batch b{};
-        b.flags = TALUS_BATCH_WANT_WAVE_SPEED;
-        b.n_points = n;
-        b.dt = 1.0;
-        b.strain_increment = de.data();
-        b.F_start = F.data();
-        b.F_end = F.data();
-        b.density = rho.data();
-        b.stress_start = in_place ? s1.data() : s0.data();
-        b.state_start = in_place ? q1.data() : q0.data();
-        b.stress_end = s1.data();
-        b.state_end = q1.data();
-        b.wave_speed = c.data();
-        b.point_id = ids.data();
-        if (in_place) {
-            std::fill(s1.begin(), s1.end(), 0.0);
-            q1 = tag;
-        }
-        return inst->update(b);
-    };
+    // Chunks of 64, 64 and 22; every third point is quick.
+    PathBatch batch(150, [](std::size_t k) { return k % 3 == 0; });
     for (const bool in_place : {false, true}) {
         SCOPED_TRACE(in_place ? "in place" : "separate arrays");
         std::vector<double> s1, q1;
-        const auto r = run(in_place, s1, q1);
+        const auto r = batch.run(*inst, in_place, s1, q1);
         ASSERT_TRUE(r.ok()) << r.message;
-        for (std::size_t c0 = 0; c0 < n; c0 += 64) {
-            // The chunk's points left by the quick pass, in order.
-            std::vector<std::size_t> rest;
-            for (std::size_t k = c0; k < std::min(n, c0 + 64); ++k)
-                if (k % 3 != 0) rest.push_back(k);
+        for (std::size_t c0 = 0; c0 < batch.n; c0 += 64) {
+            const std::vector<std::size_t> rest = batch.left_in_chunk(c0);
             for (std::size_t j = 0; j < rest.size(); ++j) {
                 const double path = rest.size() % 2 == 1 && j + 1 == rest.size() ? 3.0 : 2.0;
                 EXPECT_EQ(s1[6 * rest[j]], path) << rest[j];
             }
         }
-        for (std::size_t k = 0; k < n; ++k) {
-            if (k % 3 == 0) {
-                EXPECT_EQ(s1[6 * k], 1.0) << k;
-            }
-            EXPECT_EQ(s1[6 * k + 1], tag[k]) << k; // the start state, whichever path
-            EXPECT_EQ(q1[k], tag[k] + 100.0) << k;
-            EXPECT_EQ(c[k], 1.0) << k;
-        }
+        batch.expect_every_point(s1, q1);
     }
     // Point 5 is the second of the first chunk's second pair (the points
     // left: 1 2, 4 5, 7 8, ...).
-    de[6 * 5 + 1] = 1.0;
-    std::vector<double> s1, q1;
-    const auto r = run(false, s1, q1);
-    EXPECT_EQ(r.status, TALUS_STATUS_FAILED);
-    EXPECT_EQ(r.point, 5);
-    EXPECT_TRUE(contains(r.message, "exception at point 5: point 1005 refuses")) << r.message;
+    batch.expect_failure_named(*inst, 5);
 }
 
 // The same with a group update: the points the quick pass leaves go to
@@ -563,53 +600,17 @@ TEST(Loader, SdkBatchLoopGroupsAndTheFailingPoint) {
     const talus::Model &m = reg.load(fixture("groups_sdk").string()).models()[0];
     const double p[] = {1e6};
     const auto inst = m.create(p);
-    const std::size_t n = 150; // chunks of 64, 64 and 22
-    std::vector<double> de(6 * n, 0.0), F(9 * n, 0.0), rho(n, 1000.0), c(n, 0.0);
-    std::vector<std::int64_t> ids(n);
-    std::vector<double> tag(n);
-    for (std::size_t k = 0; k < n; ++k) {
-        // Every third point is quick, and from 128 on every other: the
-        // last chunk leaves 11 points (a group of 8, one of 3).
-        de[6 * k] = (k < 128 ? k % 3 == 0 : k % 2 == 0) ? 0.0 : 1e-4;
-        for (int i = 0; i < 3; ++i)
-            F[9 * k + 4 * static_cast<std::size_t>(i)] = 1.0;
-        ids[k] = static_cast<std::int64_t>(k) + 1000;
-        tag[k] = static_cast<double>(k);
-    }
-    auto run = [&](bool in_place, std::vector<double> &s1, std::vector<double> &q1) {
-        std::vector<double> s0(6 * n, 0.0), q0 = tag;
-        s1.assign(6 * n, -1.0);
-        q1.assign(n, -1.0);
-        talus_batch b{};
-        b.flags = TALUS_BATCH_WANT_WAVE_SPEED;
-        b.n_points = n;
-        b.dt = 1.0;
-        b.strain_increment = de.data();
-        b.F_start = F.data();
-        b.F_end = F.data();
-        b.density = rho.data();
-        b.stress_start = in_place ? s1.data() : s0.data();
-        b.state_start = in_place ? q1.data() : q0.data();
-        b.stress_end = s1.data();
-        b.state_end = q1.data();
-        b.wave_speed = c.data();
-        b.point_id = ids.data();
-        if (in_place) {
-            std::fill(s1.begin(), s1.end(), 0.0);
-            q1 = tag;
-        }
-        return inst->update(b);
-    };
+    // Chunks of 64, 64 and 22. Every third point is quick, and from 128 on
+    // every other: the last chunk leaves 11 points (a group of 8, one of 3).
+    PathBatch batch(150, [](std::size_t k) { return k < 128 ? k % 3 == 0 : k % 2 == 0; });
     for (const bool in_place : {false, true}) {
         SCOPED_TRACE(in_place ? "in place" : "separate arrays");
         std::vector<double> s1, q1;
-        const auto r = run(in_place, s1, q1);
+        const auto r = batch.run(*inst, in_place, s1, q1);
         ASSERT_TRUE(r.ok()) << r.message;
         std::size_t groups_seen = 0;
-        for (std::size_t c0 = 0; c0 < n; c0 += 64) {
-            std::vector<std::size_t> rest;
-            for (std::size_t k = c0; k < std::min(n, c0 + 64); ++k)
-                if (de[6 * k] != 0.0) rest.push_back(k);
+        for (std::size_t c0 = 0; c0 < batch.n; c0 += 64) {
+            const std::vector<std::size_t> rest = batch.left_in_chunk(c0);
             // Groups of 8 from the chunk's start, the remainder one group.
             for (std::size_t j = 0; j < rest.size(); ++j) {
                 const std::size_t size = std::min<std::size_t>(8, rest.size() - j / 8 * 8);
@@ -623,21 +624,9 @@ TEST(Loader, SdkBatchLoopGroupsAndTheFailingPoint) {
             }
         }
         EXPECT_EQ(groups_seen, 6u + 6u + 2u); // 42, 43 and 11 points left
-        for (std::size_t k = 0; k < n; ++k) {
-            if (de[6 * k] == 0.0) {
-                EXPECT_EQ(s1[6 * k], 1.0) << k;
-            }
-            EXPECT_EQ(s1[6 * k + 1], tag[k]) << k; // the start state, whichever path
-            EXPECT_EQ(q1[k], tag[k] + 100.0) << k;
-            EXPECT_EQ(c[k], 1.0) << k;
-        }
+        batch.expect_every_point(s1, q1);
     }
     // Point 11 is the last of the first chunk's first group (the points
     // left: 1 2 4 5 7 8 10 11 ...).
-    de[6 * 11 + 1] = 1.0;
-    std::vector<double> s1, q1;
-    const auto r = run(false, s1, q1);
-    EXPECT_EQ(r.status, TALUS_STATUS_FAILED);
-    EXPECT_EQ(r.point, 11);
-    EXPECT_TRUE(contains(r.message, "exception at point 11: point 1011 refuses")) << r.message;
+    batch.expect_failure_named(*inst, 11);
 }

@@ -37,6 +37,20 @@ Mat3 random_rotation(std::mt19937 &gen) {
     return q.toRotationMatrix();
 }
 
+// n symmetric matrices with entries uniform in [-1e4, 1e4].
+std::vector<Mat3> random_symmetric(std::mt19937 &gen, int n) {
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    std::vector<Mat3> m;
+    for (int k = 0; k < n; ++k) {
+        Mat3 a;
+        for (int i = 0; i < 3; ++i)
+            for (int j = i; j < 3; ++j)
+                a(i, j) = a(j, i) = 1e4 * u(gen);
+        m.push_back(a);
+    }
+    return m;
+}
+
 // Checks the decomposition of a against the descending values l (exact up
 // to a's construction).
 void expect_decomposition(const Mat3 &a, const V3 &l) {
@@ -183,15 +197,7 @@ TEST(SymmetricEigen, NaNInGivesNaNOut) {
 // holds NaN, which must not reach the other lane.
 TEST(SymmetricEigen, PairLanesAreTheSingleDecompositionBitForBit) {
     std::mt19937 gen(11);
-    std::uniform_real_distribution<double> u(-1.0, 1.0);
-    std::vector<Mat3> m;
-    for (int k = 0; k < 200; ++k) {
-        Mat3 a;
-        for (int i = 0; i < 3; ++i)
-            for (int j = i; j < 3; ++j)
-                a(i, j) = a(j, i) = 1e4 * u(gen);
-        m.push_back(a);
-    }
+    std::vector<Mat3> m = random_symmetric(gen, 200);
     const Mat3 r = random_rotation(gen);
     m.push_back(r * V3(2.0, 1.0, 1.0).asDiagonal() * r.transpose()); // a double value
     m.push_back(1e-70 * m[0]);                                       // scaled up
@@ -239,15 +245,7 @@ TEST(SymmetricEigen, PairLanesAreTheSingleDecompositionBitForBit) {
 // (scaled, multiples of the identity, NaN, plane) in any lane.
 TEST(SymmetricEigen, GroupsAreTheSingleDecompositionBitForBit) {
     std::mt19937 gen(17);
-    std::uniform_real_distribution<double> u(-1.0, 1.0);
-    std::vector<Mat3> pool;
-    for (int k = 0; k < 400; ++k) {
-        Mat3 a;
-        for (int i = 0; i < 3; ++i)
-            for (int j = i; j < 3; ++j)
-                a(i, j) = a(j, i) = 1e4 * u(gen);
-        pool.push_back(a);
-    }
+    const std::vector<Mat3> pool = random_symmetric(gen, 400);
     const Mat3 r = random_rotation(gen);
     std::vector<Mat3> special{r * V3(2.0, 1.0, 1.0).asDiagonal() * r.transpose(), 1e-70 * pool[0],
                               1e70 * pool[1], -3.5 * Mat3::Identity(), Mat3::Zero()};

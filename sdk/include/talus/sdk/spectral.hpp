@@ -222,6 +222,9 @@ struct OctetOut {
 #pragma GCC optimize("fp-contract=off")
 namespace talus::sdk::detail::octet {
 
+// The lane pair's helpers (above) for eight lanes, defined again inside
+// the region: a helper from outside it would be compiled for the baseline
+// target, and GCC does not inline the region's intrinsics into it.
 using Lanes = double __attribute__((vector_size(64)));
 using LanesMask = decltype(Lanes{} < Lanes{});
 
