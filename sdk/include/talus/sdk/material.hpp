@@ -323,13 +323,17 @@ struct PointOut {
     Mat6 *tangent = nullptr;
 };
 
+// The most points update_group() gets at once (eight: the decompositions
+// of spectral.hpp's symmetric_eigen_group fill one AVX-512 vector).
+inline constexpr std::size_t kGroupSize = 8;
+
 // A chunk of a batch, for a model's optional quick pass (see the head of
 // this file), which finishes the points it can finish cheaply (a model's
 // common case: an elastic step) in a loop over the chunk's arrays, without
 // the per-point set-up of update(); the others go to update(), or in pairs
-// to update_pair(), or in groups of up to kGroupSize to update_group(). Each
-// point's result must be what update() gives it,
-// whatever its neighbours. Arrays of n points, point after point (6 strain or stress
+// to update_pair(), or in groups of up to kGroupSize to update_group().
+// Each point's result must be what update() gives it, whatever its
+// neighbours. Arrays of n points, point after point (6 strain or stress
 // components, the model's state values, 36 tangent entries row-major).
 // state_end holds a copy of the start state on entry. A point the pass
 // finishes gets its whole result: stress_end, the state values that change,
@@ -339,10 +343,6 @@ struct PointOut {
 // wave_speed and tangent entries may be written, update() overwrites them.
 // The pass must not throw (a failure would name the chunk's first point):
 // a point it cannot finish is left to update().
-// The most points update_group() gets at once (eight: the decompositions
-// of spectral.hpp's symmetric_eigen_group fill one AVX-512 vector).
-inline constexpr std::size_t kGroupSize = 8;
-
 struct Points {
     static constexpr std::size_t kMaxSize = 64;
     std::size_t n = 0;
