@@ -61,6 +61,7 @@ const CLI::Validator kThreadCount(
         try {
             n = std::stoll(text, &used);
         } catch (const std::out_of_range &) {
+            // Beyond a long long: far too many, or with a minus far too few.
             used = text.size();
             n = text.find('-') == std::string::npos ? talus::kMaxThreads + 1LL : 0;
         } catch (const std::exception &) {

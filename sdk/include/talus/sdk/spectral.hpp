@@ -31,21 +31,19 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
-
 #include <cstddef>
+#include <limits>
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
 
 // Eight decompositions a vector where the processor has AVX-512 (F and
-// DQ), chosen at run time; GCC on x86-64 only (the region below needs its
-// target and optimize pragmas). Elsewhere, and on other processors, the
-// lane pairs.
-// Not where the model's own build may fuse multiplies and adds (an FMA
-// target: -march=native and the like), since the other paths then round
-// differently from these lanes.
+// DQ), chosen at run time: with GCC on x86-64 (the region below needs its
+// target and optimize pragmas), and not where the model's own build may
+// fuse multiplies and adds (an FMA target: -march=native and the like),
+// since the other paths then round differently from these lanes.
+// Elsewhere, and on other processors, the lane pairs.
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && __GNUC__ >= 10 &&           \
     !defined(__FMA__)
 #define TALUS_SDK_HAS_OCTET 1
@@ -316,17 +314,64 @@ inline void general_eigen_lanes(const Mat3 &a, const Mat3 &b, SymmetricEigen &ea
 #endif
 }
 
-inline void symmetric_eigen_lanes(const Mat3 &a, const Mat3 &b, SymmetricEigen &ea,
-                                  SymmetricEigen *eb) {
-    // Plane matrices in closed form, each by itself, so that a matrix's
-    // bits do not depend on its partner; the others as below.
-    const bool plane_a = is_plane(a), plane_b = eb && is_plane(b);
-    if (plane_a) plane_eigen(a, ea);
-    if (plane_b) plane_eigen(b, *eb);
-    if (plane_a && (!eb || plane_b)) return;
-    if (plane_a) return general_eigen_lanes(b, b, *eb, nullptr);
-    if (eb && plane_b) return general_eigen_lanes(a, a, ea, nullptr);
-    general_eigen_lanes(a, b, ea, eb);
+} // namespace detail
+
+// The most matrices symmetric_eigen_group takes.
+inline constexpr std::size_t kEigenGroup = 8;
+
+namespace detail {
+
+// The decompositions of *a[k] into *out[k], k < n <= kEigenGroup, each bit
+// for bit that of the matrix alone: plane matrices in closed form, each by
+// itself; the others eight a vector (from four of them on, with AVX-512),
+// else two at a time, an odd one in the pair's first lane with the second
+// idle. One matrix alone takes that lane too, so its bits do not depend on
+// whether it was decomposed alone, in a pair or in a group, whatever the
+// compiler contracts into fused multiply-adds.
+inline void eigen_group(const Mat3 *const *a, SymmetricEigen *const *out, std::size_t n) {
+    std::size_t general[kEigenGroup];
+    std::size_t ng = 0;
+    for (std::size_t k = 0; k < n && k < kEigenGroup; ++k) {
+        if (is_plane(*a[k]))
+            plane_eigen(*a[k], *out[k]);
+        else
+            general[ng++] = k;
+    }
+#if defined(TALUS_SDK_HAS_OCTET)
+    // A vector of eight costs about what four matrices do in pairs (about
+    // 30 ns a lane against 60 a matrix, docs/performance.md).
+    if (ng >= 4 && octet_enabled()) {
+        OctetIn in;
+        for (std::size_t lane = 0; lane < kEigenGroup; ++lane) {
+            // Idle lanes repeat the last matrix: lanes do not mix.
+            const Mat3 &m = *a[general[std::min(lane, ng - 1)]];
+            in.a[0][lane] = m(0, 0);
+            in.a[1][lane] = m(1, 1);
+            in.a[2][lane] = m(2, 2);
+            in.a[3][lane] = m(0, 1);
+            in.a[4][lane] = m(0, 2);
+            in.a[5][lane] = m(1, 2);
+        }
+        OctetOut o;
+        octet::unordered_octet(in, o);
+        for (std::size_t lane = 0; lane < ng; ++lane) {
+            double l[3], vec[3][3];
+            for (int i = 0; i < 3; ++i) {
+                l[i] = o.l[i][lane];
+                for (int j = 0; j < 3; ++j)
+                    vec[i][j] = o.vec[i][j][lane];
+            }
+            const std::size_t k = general[lane];
+            order_lane(o.q[lane], o.scale[lane], l, vec, is_multiple_of_identity(*a[k]), *out[k]);
+        }
+        return;
+    }
+#endif
+    std::size_t g = 0;
+    for (; g + 1 < ng; g += 2)
+        general_eigen_lanes(*a[general[g]], *a[general[g + 1]], *out[general[g]],
+                            out[general[g + 1]]);
+    if (g < ng) general_eigen_lanes(*a[general[g]], *a[general[g]], *out[general[g]], nullptr);
 }
 
 } // namespace detail
@@ -334,11 +379,10 @@ inline void symmetric_eigen_lanes(const Mat3 &a, const Mat3 &b, SymmetricEigen &
 // The ordered spectral decomposition of the symmetric matrix a (its upper
 // triangle is read). NaN in gives NaN out.
 inline SymmetricEigen symmetric_eigen(const Mat3 &a) {
-    // In the lane pair's first lane (the second idle), so that a matrix's
-    // bits do not depend on whether it was decomposed alone or in a pair,
-    // whatever the compiler contracts into fused multiply-adds.
     SymmetricEigen out;
-    detail::symmetric_eigen_lanes(a, a, out, nullptr);
+    const Mat3 *in[1] = {&a};
+    SymmetricEigen *res[1] = {&out};
+    detail::eigen_group(in, res, 1);
     return out;
 }
 
@@ -348,62 +392,24 @@ inline SymmetricEigen symmetric_eigen(const Mat3 &a) {
 // material.hpp).
 inline void symmetric_eigen_pair(const Mat3 &a, const Mat3 &b, SymmetricEigen &ea,
                                  SymmetricEigen &eb) {
-    detail::symmetric_eigen_lanes(a, b, ea, &eb);
+    const Mat3 *in[2] = {&a, &b};
+    SymmetricEigen *res[2] = {&ea, &eb};
+    detail::eigen_group(in, res, 2);
 }
-
-// The most matrices symmetric_eigen_group takes.
-inline constexpr std::size_t kEigenGroup = 8;
 
 // The ordered spectral decompositions of the n <= kEigenGroup symmetric
 // matrices a[0..n) into out[0..n): each bit for bit what symmetric_eigen
-// gives for it. Plane matrices in closed form, the others two at a time,
-// or, from four of them on, on a processor with AVX-512 (F, DQ), eight a
-// vector: about half the cost of the pairs per matrix (for models that
-// take points in groups, material.hpp).
+// gives for it; on a processor with AVX-512 (F, DQ) eight a vector, about
+// half the cost of the pairs per matrix (for models that take points in
+// groups, material.hpp).
 inline void symmetric_eigen_group(const Mat3 *a, SymmetricEigen *out, std::size_t n) {
-    std::size_t general[kEigenGroup];
-    std::size_t ng = 0;
+    const Mat3 *in[kEigenGroup];
+    SymmetricEigen *res[kEigenGroup];
     for (std::size_t k = 0; k < n && k < kEigenGroup; ++k) {
-        if (detail::is_plane(a[k]))
-            detail::plane_eigen(a[k], out[k]);
-        else
-            general[ng++] = k;
+        in[k] = a + k;
+        res[k] = out + k;
     }
-#if defined(TALUS_SDK_HAS_OCTET)
-    // Below four the pairs cost less than a vector of eight.
-    if (ng >= 4 && detail::octet_enabled()) {
-        detail::OctetIn in;
-        for (std::size_t lane = 0; lane < kEigenGroup; ++lane) {
-            // Idle lanes repeat the last matrix: lanes do not mix.
-            const Mat3 &m = a[general[std::min(lane, ng - 1)]];
-            in.a[0][lane] = m(0, 0);
-            in.a[1][lane] = m(1, 1);
-            in.a[2][lane] = m(2, 2);
-            in.a[3][lane] = m(0, 1);
-            in.a[4][lane] = m(0, 2);
-            in.a[5][lane] = m(1, 2);
-        }
-        detail::OctetOut o;
-        detail::octet::unordered_octet(in, o);
-        for (std::size_t lane = 0; lane < ng; ++lane) {
-            double l[3], vec[3][3];
-            for (int i = 0; i < 3; ++i) {
-                l[i] = o.l[i][lane];
-                for (int j = 0; j < 3; ++j)
-                    vec[i][j] = o.vec[i][j][lane];
-            }
-            const std::size_t k = general[lane];
-            detail::order_lane(o.q[lane], o.scale[lane], l, vec,
-                               detail::is_multiple_of_identity(a[k]), out[k]);
-        }
-        return;
-    }
-#endif
-    std::size_t g = 0;
-    for (; g + 1 < ng; g += 2)
-        detail::general_eigen_lanes(a[general[g]], a[general[g + 1]], out[general[g]],
-                                    &out[general[g + 1]]);
-    if (g < ng) detail::general_eigen_lanes(a[general[g]], a[general[g]], out[general[g]], nullptr);
+    detail::eigen_group(in, res, n);
 }
 
 } // namespace talus::sdk
