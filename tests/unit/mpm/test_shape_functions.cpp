@@ -123,8 +123,11 @@ void check_bounded(int n) {
         // The clamped functions by their definition (the Cox-de Boor
         // recursion on the clamped knots, wherever xi is): eval_bounded
         // must give them, also where it takes the uniform formulas (the
-        // solver's fast path relies on interior(); round-off of the
-        // recursion: 1e-15 on values, 1e-14 on derivatives of order one).
+        // solver's fast path relies on interior()) or, on domains of 8
+        // cells and more, the polynomial pieces next to a face
+        // (ClampedPieces; round-off of the recursion and of the pieces'
+        // coefficients: 1e-15 on values, 1e-14 on derivatives of order
+        // one).
         {
             double wr[S::width], dr[S::width], gr[S::width];
             talus::clamped_bsplines<P, S::width>(xi, n, base, wr, dr, gr);
@@ -169,11 +172,11 @@ void check_bounded(int n) {
 }
 
 TEST(ShapeFunctions, ClampedQuadraticBSplineOnABoundedDomain) {
-    for (int n : {1, 2, 3, 5, 40})
+    for (int n : {1, 2, 3, 5, 7, 8, 40})
         check_bounded<talus::BSpline2Shape, 2>(n);
 }
 TEST(ShapeFunctions, ClampedCubicBSplineOnABoundedDomain) {
-    for (int n : {1, 2, 3, 5, 40})
+    for (int n : {1, 2, 3, 5, 7, 8, 40})
         check_bounded<talus::BSpline3Shape, 3>(n);
 }
 
