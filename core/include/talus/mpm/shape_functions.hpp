@@ -67,7 +67,7 @@ inline double bspline_basis(const double *t, double u, double end, double &dN) {
 // of its P inner knots), the point the node's coefficient represents
 // (sum_k g_k N_k(u) = u), for the affine transfers and node selection.
 template <int P>
-inline void clamped_knots(int k, int n, double *t) {
+constexpr void clamped_knots(int k, int n, double *t) {
     for (int j = 0; j < P + 2; ++j)
         t[j] = std::clamp(k - 0.5 * (P + 1) + j, 0.0, static_cast<double>(n));
 }
@@ -120,6 +120,8 @@ struct ClampedPieces {
     // reach 3.5 (quadratic) and 5 (cubic) cells.
     static constexpr double start[2] = {0.0, P == 2 ? 0.5 : 1.0};
     static constexpr int min_cells = 8;
+    // A domain long enough that only the face u = 0 clamps the knots.
+    static constexpr int kFar = 1 << 20;
     double c[2][W][P + 1]; // [interval][node of the stencil][power of r]
 
     constexpr ClampedPieces() : c{} {
@@ -131,10 +133,7 @@ struct ClampedPieces {
     // Node k's function on the knot interval starting at u0, in r = u - u0.
     static constexpr void piece(int k, double u0, double (&out)[P + 1]) {
         double t[P + 2] = {};
-        for (int j = 0; j < P + 2; ++j) {
-            const double knot = k - 0.5 * (P + 1) + j;
-            t[j] = knot < 0.0 ? 0.0 : knot;
-        }
+        clamped_knots<P>(k, kFar, t);
         double N[P + 1][P + 1] = {}; // N[j]: coefficients of r^0 .. r^P
         for (int j = 0; j <= P; ++j)
             N[j][0] = t[j] <= u0 && u0 < t[j + 1] ? 1.0 : 0.0;
@@ -190,13 +189,15 @@ inline void bounded_bspline(double xi, int n, int &base, double *w, double *dw, 
             g[k] = base + k;
         return;
     }
-    // Next to one face only: the pieces; at a face's exact point for the
-    // cubic (a stencil one node further out) and on short domains, the
-    // recursion.
+    // Next to one face only, the pieces: interval 0 or 1 where the
+    // stencil's first node is -1 or 0 counted from the face (at the upper
+    // face, back from n). At a face's exact point for the cubic (a stencil
+    // one node further out) and on short domains, the recursion.
     using Pieces = ClampedPieces<P>;
     const int lower = base + 1, upper = n - (base + S::width - 1) + 1;
-    if (n >= Pieces::min_cells && (lower == 0 || lower == 1 || upper == 0 || upper == 1)) {
-        const bool mirror = !(lower == 0 || lower == 1);
+    const bool at_lower = lower == 0 || lower == 1, at_upper = upper == 0 || upper == 1;
+    if (n >= Pieces::min_cells && (at_lower || at_upper)) {
+        const bool mirror = !at_lower;
         const int i = mirror ? upper : lower;
         const double u = mirror ? n - xi : xi;
         kClampedPieces<P>.eval(i, u - Pieces::start[i], mirror, w, dw);
