@@ -126,25 +126,33 @@ void for_each_slab_by_colour(int n_slabs, F &&f) {
     }
 }
 
-// f(i, partial) for i in [0, n), each thread into its own partial result R
-// (default-constructed), merged after the loop by R::merge(const R &).
-// Each thread's indices are one contiguous increasing range, the ranges in
-// thread order, and the partials are merged in that order (a partial may
-// rely on it to see what happens at the boundaries between ranges).
+// The indices a partial of reduce() covers.
+inline constexpr std::size_t kReduceChunk = 4096;
+
+// f(i, partial) for i in [0, n), into one partial result R (default-
+// constructed) per chunk of kReduceChunk consecutive indices, merged after
+// the loop by R::merge(const R &) in chunk order (a partial may rely on it
+// to see what happens at the boundaries between ranges). The chunks depend
+// on n alone, so a floating-point sum rounds the same whatever the thread
+// count: per-thread partials made the stages' kinetic energy ratio differ
+// in its last bits between one and two threads, which could move a stage's
+// end by a step in a run whose thread count changes, or on restart.
 template <class R, class F>
 R reduce(std::size_t n, F &&f) {
-    std::vector<R> partial(static_cast<std::size_t>(max_threads()));
-    const std::ptrdiff_t N = static_cast<std::ptrdiff_t>(n);
+    const std::size_t chunks = (n + kReduceChunk - 1) / kReduceChunk;
+    std::vector<R> partial(chunks);
+    const std::ptrdiff_t N = static_cast<std::ptrdiff_t>(chunks);
     ++regions();
-#pragma omp parallel
-    {
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t c = 0; c < N; ++c) {
         // A local partial (registers, once the loop body is inlined), stored
         // once at the end.
         R mine{};
-#pragma omp for schedule(static)
-        for (std::ptrdiff_t i = 0; i < N; ++i)
-            f(static_cast<std::size_t>(i), mine);
-        partial[static_cast<std::size_t>(thread_index())] = mine;
+        const std::size_t begin = static_cast<std::size_t>(c) * kReduceChunk;
+        const std::size_t end = std::min(n, begin + kReduceChunk);
+        for (std::size_t i = begin; i < end; ++i)
+            f(i, mine);
+        partial[static_cast<std::size_t>(c)] = mine;
     }
     R total{};
     for (const R &p : partial)
