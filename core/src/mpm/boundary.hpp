@@ -27,7 +27,7 @@ class Boundary {
 
     // Applies every condition at (the run's) time t to the velocity at
     // `offset` of the node records `field` (Grid::vel at node::kVelocity or
-    // kEndVelocity, or another field laid out the same way), at the nodes
+    // end_velocity(dim), or another field laid out the same way), at the nodes
     // of the grid's active box (Grid::active): the step's kernels read and
     // write no other. `fixity` is Grid::acc: its node::kFixity slot says
     // which fixities reach a node.

@@ -28,8 +28,11 @@ inline constexpr std::size_t kRecord = 8;
 // set when a particle of particle_velocities[k] reaches the node (exact in
 // a double: 32 bits).
 inline constexpr std::size_t kMass = 0, kMomentum = 1, kForce = 4, kFixity = 7;
-// The velocities (Grid::vel): v at the start of the step, v~ at its end.
-inline constexpr std::size_t kVelocity = 0, kEndVelocity = 4;
+// The velocities (Grid::vel): v at the start of the step, v~ at its end,
+// right after it: in 2D both fit the record's first four doubles, which is
+// all the 2D G2P reads (half records, stencil.hpp).
+inline constexpr std::size_t kVelocity = 0;
+constexpr std::size_t end_velocity(int dim) { return static_cast<std::size_t>(dim); }
 } // namespace node
 
 // What a kernel needs to find a particle's nodes: plain values, copied

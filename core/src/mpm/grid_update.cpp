@@ -14,6 +14,7 @@ template <bool Update, DampingKind Damping = DampingKind::none>
 void velocities(Grid &grid, const Boundary &bc, double t, double dt, double alpha = 0.0) {
     double *a = grid.acc.data(), *v = grid.vel.data();
     const int D = grid.geo.dim;
+    const std::size_t ve = node::end_velocity(D);
     // v = p / m everywhere and, when updating, v~ = v + dt f / m in the same
     // pass; the constrained nodes are then redone in order (conditions on v,
     // v~ from the constrained v, conditions on v~), which matters for
@@ -34,7 +35,7 @@ void velocities(Grid &grid, const Boundary &bc, double t, double dt, double alph
                     f -= alpha * std::abs(f) * static_cast<double>((v0 > 0.0) - (v0 < 0.0));
                 else if constexpr (Damping == DampingKind::viscous)
                     f -= alpha * m * v0;
-                v[kRecord * i + node::kEndVelocity + d] = v0 + dt * f * inv;
+                v[kRecord * i + ve + d] = v0 + dt * f * inv;
             }
         }
     });
@@ -44,10 +45,10 @@ void velocities(Grid &grid, const Boundary &bc, double t, double dt, double alph
         const double m = a[kRecord * i + node::kMass];
         const double inv = m > 0.0 ? 1.0 / m : 0.0;
         for (std::size_t d = 0; d < static_cast<std::size_t>(D); ++d)
-            v[kRecord * i + node::kEndVelocity + d] =
+            v[kRecord * i + ve + d] =
                 v[kRecord * i + node::kVelocity + d] + dt * a[kRecord * i + node::kForce + d] * inv;
     });
-    bc.apply(grid, v, node::kEndVelocity, a, t + dt);
+    bc.apply(grid, v, ve, a, t + dt);
 }
 
 } // namespace

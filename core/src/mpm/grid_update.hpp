@@ -12,7 +12,7 @@ namespace talus {
 // Grid::vel[node::kVelocity].
 void grid_velocity(Grid &grid, const Boundary &bc, double t);
 // v as above, and v~ = v + dt f / m (eqs. 31-32) with the conditions at
-// t + dt into Grid::vel[node::kEndVelocity].
+// t + dt into Grid::vel[node::end_velocity(dim)].
 // With `damping`, the nodal force is damped first (DampingSpec), from the
 // velocity v at t.
 void grid_update(Grid &grid, const Boundary &bc, double t, double dt,

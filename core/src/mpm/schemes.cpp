@@ -7,7 +7,7 @@
 
 namespace talus {
 
-using node::kEndVelocity, node::kForce, node::kMomentum, node::kVelocity;
+using node::kForce, node::kMomentum, node::kVelocity;
 
 // Update stress last: L from v~, the particles move with v~ (or with
 // (v + v~) / 2 at second order).

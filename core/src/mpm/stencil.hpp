@@ -58,7 +58,14 @@ inline constexpr int kLanes = static_cast<int>(node::kRecord);
 //
 // All are passed by reference only: a vector by value would change the
 // calling convention with the target's vector width.
+//
+// A kernel that needs only a record's first four doubles (the 2D G2P: v
+// and v~, node::end_velocity) runs on half records (HalfRecord below:
+// Vec4, Split<N, 4>): half the multiply-adds and the loads of a whole
+// record, and on a processor that splits a 512-bit operation in two (AMD
+// Zen 4), half the cycles. The sums are the same, lane by lane.
 typedef double Vec8 __attribute__((vector_size(8 * sizeof(double))));
+typedef double Vec4 __attribute__((vector_size(4 * sizeof(double))));
 
 // Lane i of vector v becomes x.
 template <class V>
@@ -69,7 +76,7 @@ template <class V>
     v = lane == static_cast<double>(i) ? V{} + x : v;
 }
 
-template <int N>
+template <int N, int K = kLanes>
 struct Split {
     typedef double Part __attribute__((vector_size(N * sizeof(double))));
     // The same vector at a double's alignment, for the loads and stores of
@@ -77,27 +84,27 @@ struct Split {
     // pieces in the AVX2 kernels, the target attribute notwithstanding).
     typedef double Unaligned
         __attribute__((vector_size(N * sizeof(double)), aligned(8), may_alias));
-    Part q[kLanes / N];
+    Part q[K / N];
     [[gnu::always_inline]] double operator[](std::size_t k) const { return q[k / N][k % N]; }
     // Lane k becomes x: a blend of x into its part (GCC 12 reports an
     // element assignment as a read of an uninitialised part).
     [[gnu::always_inline]] void set(std::size_t k, double x) { blend_lane(q[k / N], k % N, x); }
     [[gnu::always_inline]] void load(const double *r) {
-        for (int i = 0; i < kLanes / N; ++i)
+        for (int i = 0; i < K / N; ++i)
             q[i] = *reinterpret_cast<const Unaligned *>(r + N * i);
     }
     [[gnu::always_inline]] void store(double *r) const {
-        for (int i = 0; i < kLanes / N; ++i)
+        for (int i = 0; i < K / N; ++i)
             *reinterpret_cast<Unaligned *>(r + N * i) = q[i];
     }
     [[gnu::always_inline]] Split &operator+=(const Split &o) {
-        for (int i = 0; i < kLanes / N; ++i)
+        for (int i = 0; i < K / N; ++i)
             q[i] += o.q[i];
         return *this;
     }
     [[gnu::always_inline]] friend Split operator*(double s, const Split &a) {
         Split r;
-        for (int i = 0; i < kLanes / N; ++i)
+        for (int i = 0; i < K / N; ++i)
             r.q[i] = s * a.q[i];
         return r;
     }
@@ -105,25 +112,49 @@ struct Split {
 using Arr8 = Split<2>;
 using Quad8 = Split<4>;
 
+// The first half of a record, in the registers of the type's target.
+template <class Lanes>
+struct HalfRecord;
+template <>
+struct HalfRecord<Vec8> {
+    using type = Vec4;
+};
+template <int N>
+struct HalfRecord<Split<N>> {
+    using type = Split<N, kLanes / 2>;
+};
+
+// The doubles of a record a type holds (8, or 4 for a half record).
+template <class Lanes>
+inline constexpr std::size_t kRecordLanes = sizeof(Lanes) / sizeof(double);
+
 // Lane k of a record's worth of values, for any of the types.
 [[gnu::always_inline]] inline void set_lane(Vec8 &v, std::size_t k, double x) { v[k] = x; }
-template <int N>
-[[gnu::always_inline]] inline void set_lane(Split<N> &v, std::size_t k, double x) {
+[[gnu::always_inline]] inline void set_lane(Vec4 &v, std::size_t k, double x) { v[k] = x; }
+template <int N, int K>
+[[gnu::always_inline]] inline void set_lane(Split<N, K> &v, std::size_t k, double x) {
     v.set(k, x);
 }
 
+// The record at r, or its first half: one vector load, no aliasing question.
 [[gnu::always_inline]] inline void load_record(const double *r, Vec8 &v) {
-    std::memcpy(&v, r, sizeof v); // one vector load, no aliasing question
+    std::memcpy(&v, r, sizeof v);
 }
 [[gnu::always_inline]] inline void store_record(double *r, const Vec8 &v) {
     std::memcpy(r, &v, sizeof v);
 }
-template <int N>
-[[gnu::always_inline]] inline void load_record(const double *r, Split<N> &v) {
+[[gnu::always_inline]] inline void load_record(const double *r, Vec4 &v) {
+    std::memcpy(&v, r, sizeof v);
+}
+[[gnu::always_inline]] inline void store_record(double *r, const Vec4 &v) {
+    std::memcpy(r, &v, sizeof v);
+}
+template <int N, int K>
+[[gnu::always_inline]] inline void load_record(const double *r, Split<N, K> &v) {
     v.load(r);
 }
-template <int N>
-[[gnu::always_inline]] inline void store_record(double *r, const Split<N> &v) {
+template <int N, int K>
+[[gnu::always_inline]] inline void store_record(double *r, const Split<N, K> &v) {
     v.store(r);
 }
 
