@@ -64,8 +64,10 @@ struct G2pMotionKernel {
         // In 2D, v and v~ are a record's first half (node::end_velocity).
         using R = std::conditional_t<D == 2, typename HalfRecord<Lanes>::type, Lanes>;
         const std::size_t ve = node::end_velocity(D);
-        // With the update fused in: the block's gradients, 9 per point.
+        // With the update fused in: the block's gradients, by columns
+        // (MaterialUpdate::gradient_buffer).
         double *L_block = Kinematics ? args.blocks->buffer() : nullptr;
+        const std::size_t L_column = Kinematics ? args.blocks->block_size() : 0;
         std::size_t block_begin = args.begin;
         // One particle, through its stencil st (a Stencil or a lane of a
         // StencilPack).
@@ -90,10 +92,10 @@ struct G2pMotionKernel {
                 step[d] = second ? 0.5 * dt * (vpic[d] + vold[d]) : dt * vpic[d];
             }
             if constexpr (Kinematics) {
-                double *Lp = L_block + 9 * (p - block_begin);
+                double *Lp = L_block + (p - block_begin);
                 for (int r = 0; r < D; ++r)
                     for (int c = 0; c < D; ++c)
-                        Lp[3 * r + c] = L[r][c];
+                        Lp[static_cast<std::size_t>(3 * r + c) * L_column] = L[r][c];
             } else if constexpr (StoreGradient) {
                 for (int r = 0; r < D; ++r)
                     for (int c = 0; c < D; ++c)

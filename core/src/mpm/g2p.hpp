@@ -40,8 +40,9 @@ void g2p_velocity(const G2pTargets &t, const double *vel, double dt, Motion moti
 class GradientBlocks {
   public:
     virtual std::size_t block_size() const = 0;
-    // The calling thread's buffer for block_size() gradients, 9 per point
-    // (row-major 3x3; entries outside the D x D block stay zero).
+    // The calling thread's buffer for block_size() gradients by columns:
+    // component c (row-major 3x3) of the block's point k at
+    // c * block_size() + k (entries outside the D x D block stay zero).
     virtual double *buffer() = 0;
     // Points [begin, begin + count) of `set` have their gradients in buffer().
     virtual void take(std::size_t set, std::size_t begin, std::size_t count) = 0;

@@ -57,11 +57,11 @@ template <int D, class T, class LT>
 // that the error shows the value that failed; nothing else is written).
 template <int D, bool Rotate>
 [[gnu::always_inline]] inline bool one_point(ParticleSet &s, std::size_t p, std::size_t k,
-                                             const double *Lp, double dt, const BlockIncrement &out,
-                                             double *divv) {
+                                             const Gradients &Lg, double dt,
+                                             const BlockIncrement &out, double *divv) {
     double F0[9], L[9], F1[9];
     std::memcpy(F0, &s.F[9 * p], sizeof F0);
-    std::memcpy(L, Lp, sizeof L);
+    Lg.copy(k, L);
     double J;
     deformation<D>(F0, L, dt, F1, J);
     s.J[p] = J;
@@ -102,9 +102,9 @@ template <class V>
 // inverted point, or (plane strain) a spin off the plane, goes point by
 // point too: nothing of it is stored before those tests.
 template <int N, int D, bool Rotate>
-[[gnu::always_inline]] inline std::size_t
-block_packs(ParticleSet &s, std::size_t begin, std::size_t count, const double *L,
-            std::size_t L_stride, double dt, const BlockIncrement &out) {
+[[gnu::always_inline]] inline std::size_t block_packs(ParticleSet &s, std::size_t begin,
+                                                      std::size_t count, const Gradients &L,
+                                                      double dt, const BlockIncrement &out) {
     using V = typename Lanes<N>::V;
     double *divv = s.has_divv ? &s.divv[begin] : nullptr;
     const double rho0 = s.rho0;
@@ -113,18 +113,21 @@ block_packs(ParticleSet &s, std::size_t begin, std::size_t count, const double *
     std::size_t k = 0;
     auto by_point = [&](std::size_t from, std::size_t to) __attribute__((always_inline)) {
         for (std::size_t j = from; j < to; ++j)
-            if (!one_point<D, Rotate>(s, begin + j, j, L + L_stride * j, dt, out, divv)) return j;
+            if (!one_point<D, Rotate>(s, begin + j, j, L, dt, out, divv)) return j;
         return to;
     };
     for (; k + N <= count; k += N) {
         const std::size_t p = begin + k;
-        const double *Lk = L + L_stride * k;
+        const double *Lk = L.from(k).L;
         V Lv[9], F0[9], F1[9];
-        if (L_stride == 9)
+        if (L.point == 1) // columns: a vector load per component
+            for (std::size_t c = 0; c < 9; ++c)
+                load_vector<N>(Lk + c * L.component, Lv[c]);
+        else if (L.point == 9 && L.component == 1)
             load_points<N>(Lk, Lv);
         else
-            for (int c = 0; c < 9; ++c)
-                load_lanes<N>(Lk + c, L_stride, Lv[c]);
+            for (std::size_t c = 0; c < 9; ++c)
+                load_lanes<N>(Lk + c * L.component, L.point, Lv[c]);
         load_points<N>(&s.F[9 * p], F0);
         V J;
         deformation<D>(F0, Lv, dt, F1, J);
@@ -173,32 +176,31 @@ block_packs(ParticleSet &s, std::size_t begin, std::size_t count, const double *
 // Strain-increment models get the objectively rotated start stress;
 // finite-strain models own their objectivity (material_abi.h).
 template <int N>
-[[gnu::always_inline]] inline std::size_t
-block_of(ParticleSet &s, std::size_t begin, std::size_t count, const double *L,
-         std::size_t L_stride, double dt, const BlockIncrement &out) {
+[[gnu::always_inline]] inline std::size_t block_of(ParticleSet &s, std::size_t begin,
+                                                   std::size_t count, const Gradients &L, double dt,
+                                                   const BlockIncrement &out) {
     const bool rotate = !s.finite_strain;
     if (s.dim == 2)
-        return rotate ? block_packs<N, 2, true>(s, begin, count, L, L_stride, dt, out)
-                      : block_packs<N, 2, false>(s, begin, count, L, L_stride, dt, out);
-    return rotate ? block_packs<N, 3, true>(s, begin, count, L, L_stride, dt, out)
-                  : block_packs<N, 3, false>(s, begin, count, L, L_stride, dt, out);
+        return rotate ? block_packs<N, 2, true>(s, begin, count, L, dt, out)
+                      : block_packs<N, 2, false>(s, begin, count, L, dt, out);
+    return rotate ? block_packs<N, 3, true>(s, begin, count, L, dt, out)
+                  : block_packs<N, 3, false>(s, begin, count, L, dt, out);
 }
 
 // One version per instruction set (isa.hpp), with its vector width.
-std::size_t block_generic(ParticleSet &s, std::size_t begin, std::size_t count, const double *L,
-                          std::size_t L_stride, double dt, const BlockIncrement &out) {
-    return block_of<2>(s, begin, count, L, L_stride, dt, out);
+std::size_t block_generic(ParticleSet &s, std::size_t begin, std::size_t count, const Gradients &L,
+                          double dt, const BlockIncrement &out) {
+    return block_of<2>(s, begin, count, L, dt, out);
 }
 #if TALUS_HAS_ISA_VERSIONS
 TALUS_TARGET_AVX2 std::size_t block_avx2(ParticleSet &s, std::size_t begin, std::size_t count,
-                                         const double *L, std::size_t L_stride, double dt,
-                                         const BlockIncrement &out) {
-    return block_of<4>(s, begin, count, L, L_stride, dt, out);
+                                         const Gradients &L, double dt, const BlockIncrement &out) {
+    return block_of<4>(s, begin, count, L, dt, out);
 }
 TALUS_TARGET_AVX512 std::size_t block_avx512(ParticleSet &s, std::size_t begin, std::size_t count,
-                                             const double *L, std::size_t L_stride, double dt,
+                                             const Gradients &L, double dt,
                                              const BlockIncrement &out) {
-    return block_of<8>(s, begin, count, L, L_stride, dt, out);
+    return block_of<8>(s, begin, count, L, dt, out);
 }
 #endif
 
@@ -259,17 +261,17 @@ void stress_work_block(ParticleSet &s, std::size_t begin, std::size_t count, con
     work_generic(s, begin, count, de, work_start);
 }
 
-std::size_t kinematics_block(ParticleSet &s, std::size_t begin, std::size_t count, const double *L,
-                             std::size_t L_stride, double dt, const BlockIncrement &out, Isa isa) {
+std::size_t kinematics_block(ParticleSet &s, std::size_t begin, std::size_t count,
+                             const Gradients &L, double dt, const BlockIncrement &out, Isa isa) {
     // The start F aside in one contiguous copy, then F1 over it in place.
     std::memcpy(out.F_start, &s.F[9 * begin], 9 * count * sizeof(double));
 #if TALUS_HAS_ISA_VERSIONS
-    if (isa == Isa::avx512) return block_avx512(s, begin, count, L, L_stride, dt, out);
-    if (isa == Isa::avx2) return block_avx2(s, begin, count, L, L_stride, dt, out);
+    if (isa == Isa::avx512) return block_avx512(s, begin, count, L, dt, out);
+    if (isa == Isa::avx2) return block_avx2(s, begin, count, L, dt, out);
 #else
     (void)isa; // every instruction set runs the generic version
 #endif
-    return block_generic(s, begin, count, L, L_stride, dt, out);
+    return block_generic(s, begin, count, L, dt, out);
 }
 
 std::optional<Inversion> dilation_sums(std::vector<ParticleSet> &sets, const GridGeometry &geo,

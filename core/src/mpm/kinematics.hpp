@@ -58,8 +58,31 @@ struct BlockIncrement {
     bool *finite;
 };
 
+// A block's velocity gradients L (row-major 3x3 per point): component c
+// of point k at L[k * point + c * component]. As the particles keep them
+// (rows: 9 consecutive doubles a point), as the fused G2P leaves them in
+// the material update's block scratch (columns: a component's values for
+// the block's points consecutive, so that the kinematics loads N points'
+// component in one vector, with no transpose), or one L for every point
+// (point stride 0).
+struct Gradients {
+    const double *L;
+    std::size_t point, component;
+    static Gradients rows(const double *L) { return {L, 9, 1}; }
+    static Gradients columns(const double *L, std::size_t points) { return {L, 1, points}; }
+    static Gradients same(const double *L) { return {L, 0, 1}; }
+    double at(std::size_t k, std::size_t c) const { return L[k * point + c * component]; }
+    // The gradients from point k on.
+    Gradients from(std::size_t k) const { return {L + k * point, point, component}; }
+    // Point k's L, row-major.
+    void copy(std::size_t k, double (&out)[9]) const {
+        for (std::size_t c = 0; c < 9; ++c)
+            out[c] = at(k, c);
+    }
+};
+
 // Points [begin, begin + count) of s from their velocity gradients L
-// (row-major 3x3, L_stride apart): F at the end of the step (eq. 39, in
+// (Gradients): F at the end of the step (eq. 39, in
 // the particle, the start F copied to out.F_start first), J
 // (kept in the particle), rho (eq. 41), the strain increment (eq. 42), div
 // v, the start stress as the model gets it (out.stress_start: for
@@ -72,8 +95,8 @@ struct BlockIncrement {
 // Points go through in packs across the vector lanes of instruction set
 // `isa` (kinematics.cpp), with the arithmetic of one point at a time:
 // the results do not depend on `isa` or on the packing.
-std::size_t kinematics_block(ParticleSet &s, std::size_t begin, std::size_t count, const double *L,
-                             std::size_t L_stride, double dt, const BlockIncrement &out, Isa isa);
+std::size_t kinematics_block(ParticleSet &s, std::size_t begin, std::size_t count,
+                             const Gradients &L, double dt, const BlockIncrement &out, Isa isa);
 
 // The stress work over the step of points [begin, begin + count) of s
 // once the model has written their end stress: work += V/2 (start work +

@@ -58,8 +58,9 @@ void MaterialUpdate::run(std::vector<ParticleSet> &sets, const Increment &inc, b
         const std::size_t B = batch_;
         par::for_each_block((s.n + B - 1) / B, [&](std::size_t b) {
             const std::size_t begin = b * B, count = std::min(B, s.n - begin);
-            const double *L = stored_L ? &s.L[9 * begin] : zero_L;
-            block(s, si, begin, count, L, stored_L ? 9 : 0, inc, failures);
+            const Gradients L =
+                stored_L ? Gradients::rows(&s.L[9 * begin]) : Gradients::same(zero_L);
+            block(s, si, begin, count, L, inc, failures);
         });
     }
 }
@@ -72,7 +73,8 @@ void MaterialUpdate::start(std::vector<ParticleSet> &sets, std::size_t set, std:
     const std::size_t B = batch_;
     par::for_each_block((count + B - 1) / B, [&](std::size_t b) {
         const std::size_t first = begin + b * B;
-        block(sets[set], set, first, std::min(B, begin + count - first), zero_L, 0, inc, failures);
+        block(sets[set], set, first, std::min(B, begin + count - first), Gradients::same(zero_L),
+              inc, failures);
     });
 }
 
@@ -88,12 +90,11 @@ void MaterialUpdate::collect() {
 }
 
 void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, std::size_t count,
-                           const double *L, std::size_t L_stride, const Increment &inc,
-                           UpdateFailures &failures) {
+                           const Gradients &L, const Increment &inc, UpdateFailures &failures) {
     Scratch &scr = scratch_[static_cast<std::size_t>(par::thread_index())];
     bool finite = true;
     const std::size_t done =
-        kinematics_block(s, begin, count, L, L_stride, inc.dt,
+        kinematics_block(s, begin, count, L, inc.dt,
                          {scr.F_start.data(), scr.stress_start.data(), scr.de.data(),
                           scr.rho.data(), scr.work_start.data(), &finite},
                          isa_);
@@ -119,8 +120,11 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
     // The increment's rotation for a model that rotates tensor state itself
     // (UMAT's DROT): the Hughes-Winget rotation the host gave the stress.
     if (s.wants_rotation)
-        for (std::size_t k = 0; k < count; ++k)
-            hughes_winget_rotation(L + L_stride * k, inc.dt, &scr.rotation[9 * k]);
+        for (std::size_t k = 0; k < count; ++k) {
+            double Lk[9];
+            L.copy(k, Lk);
+            hughes_winget_rotation(Lk, inc.dt, &scr.rotation[9 * k]);
+        }
     const std::size_t ns = s.state_size;
     const Inputs in{scr.stress_start.data(), ns ? &s.state[ns * begin] : nullptr,
                     scr.F_start.data(), &s.F[9 * begin], scr.de.data(), scr.rho.data(),

@@ -90,13 +90,13 @@ class MaterialUpdate {
     void run(std::vector<ParticleSet> &sets, const Increment &inc, bool stored_L,
              UpdateFailures &failures);
     // Points [begin, begin + count) of set s, count <= block_size(), with
-    // velocity gradients L (row-major 3x3, L_stride apart): kinematics, the
+    // velocity gradients L (kinematics.hpp, Gradients): kinematics, the
     // plugin call (sub-stepped on a cut-step request), then the state and
     // the stress work committed. Called from any thread.
     void block(ParticleSet &s, std::size_t set, std::size_t begin, std::size_t count,
-               const double *L, std::size_t L_stride, const Increment &inc,
-               UpdateFailures &failures);
-    // The calling thread's buffer for a block's gradients: block_size() x 9,
+               const Gradients &L, const Increment &inc, UpdateFailures &failures);
+    // The calling thread's buffer for a block's gradients, by columns
+    // (Gradients::columns): component c of point k at c * block_size() + k;
     // zero where never written.
     double *gradient_buffer();
 

@@ -89,7 +89,8 @@ class MaterialBlocks final : public GradientBlocks {
     double *buffer() override { return m_.gradient_buffer(); }
     void take(std::size_t set, std::size_t begin, std::size_t count) override {
         const std::uint64_t t0 = ticks();
-        m_.block(sets_[set], set, begin, count, m_.gradient_buffer(), 9, inc_, failures_);
+        m_.block(sets_[set], set, begin, count,
+                 Gradients::columns(m_.gradient_buffer(), m_.block_size()), inc_, failures_);
         const std::uint64_t t1 = ticks();
         ends_.block(set, begin, count);
         const std::uint64_t t2 = ticks();

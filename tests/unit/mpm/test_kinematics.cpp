@@ -54,16 +54,29 @@ struct Block {
         rho.assign(n, -1.0);
         work.assign(n, -1.0);
     }
-    std::size_t run(Isa isa, std::size_t L_stride = 9) {
+    // The gradients as the particles keep them (rows), as the fused G2P
+    // leaves them (columns: a copy of L by component), or L's first for all.
+    enum class Layout { rows, columns, same };
+    talus::Gradients gradients(Layout layout) {
+        if (layout == Layout::same) return talus::Gradients::same(L.data());
+        if (layout == Layout::rows) return talus::Gradients::rows(L.data());
+        columns.assign(9 * s.n, 0.0);
+        for (std::size_t p = 0; p < s.n; ++p)
+            for (std::size_t c = 0; c < 9; ++c)
+                columns[c * s.n + p] = L[9 * p + c];
+        return talus::Gradients::columns(columns.data(), s.n);
+    }
+    std::size_t run(Isa isa, Layout layout = Layout::rows) {
         return talus::kinematics_block(
-            s, 0, s.n, L.data(), L_stride, dt,
+            s, 0, s.n, gradients(layout), dt,
             {F_start.data(), stress.data(), de.data(), rho.data(), work.data(), &finite}, isa);
     }
     // Point by point: a block of one point never fills a pack, so this is
     // the scalar code.
-    std::size_t run_one_by_one(std::size_t L_stride = 9) {
+    std::size_t run_one_by_one(Layout layout = Layout::rows) {
+        const talus::Gradients all = gradients(layout);
         for (std::size_t p = 0; p < s.n; ++p)
-            if (talus::kinematics_block(s, p, 1, L.data() + L_stride * p, L_stride, dt,
+            if (talus::kinematics_block(s, p, 1, all.from(p), dt,
                                         {F_start.data() + 9 * p, stress.data() + 6 * p,
                                          de.data() + 6 * p, rho.data() + p, work.data() + p,
                                          &finite},
@@ -71,6 +84,7 @@ struct Block {
                 return p;
         return s.n;
     }
+    std::vector<double> columns;
     double dt = 0.05;
     bool finite = true;
 };
@@ -156,22 +170,28 @@ TEST(Kinematics, BlockMatchesTheDefinitions) {
 }
 
 TEST(Kinematics, EveryInstructionSetGivesTheScalarBits) {
-    // Counts below, at and past a pack, and a plugin batch; L_stride 0 is
-    // the initial state's one L for all points.
+    // Counts below, at and past a pack, and a plugin batch; every layout of
+    // the gradients (the same L for all points is the initial state's),
+    // the scalar reference always from the rows: the layouts give the
+    // same bits too.
+    using Layout = Block::Layout;
     for (int dim : {2, 3})
         for (bool finite : {false, true})
             for (std::size_t n : {1u, 7u, 8u, 13u, 128u})
-                for (std::size_t stride : {9u, 0u})
+                for (Layout layout : {Layout::rows, Layout::columns, Layout::same})
                     for (bool off_plane : {false, true}) {
                         Block ref = random_block(dim, finite, n, 5, off_plane);
-                        ASSERT_EQ(ref.run_one_by_one(stride), n);
+                        ASSERT_EQ(ref.run_one_by_one(layout == Layout::same ? Layout::same
+                                                                            : Layout::rows),
+                                  n);
                         for (Isa isa : runnable_isas()) {
                             Block b = random_block(dim, finite, n, 5, off_plane);
-                            ASSERT_EQ(b.run(isa, stride), n);
-                            const std::string where =
-                                std::string(talus::isa_name(isa)) + ", dim " + std::to_string(dim) +
-                                ", n " + std::to_string(n) + ", stride " + std::to_string(stride) +
-                                (off_plane ? ", off the plane" : "");
+                            ASSERT_EQ(b.run(isa, layout), n);
+                            const std::string where = std::string(talus::isa_name(isa)) + ", dim " +
+                                                      std::to_string(dim) + ", n " +
+                                                      std::to_string(n) + ", layout " +
+                                                      std::to_string(static_cast<int>(layout)) +
+                                                      (off_plane ? ", off the plane" : "");
                             auto same = [&](const double *a, const double *c, std::size_t m) {
                                 return std::memcmp(a, c, m * sizeof(double)) == 0;
                             };
