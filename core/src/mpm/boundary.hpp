@@ -26,8 +26,8 @@ class Boundary {
              const Comm &comm = Comm::serial());
 
     // Applies every condition at (the run's) time t to the velocity at
-    // `offset` of the node records `field` (Grid::vel at node::kVelocity or
-    // end_velocity(dim), or another field laid out the same way), at the nodes
+    // `offset` of the node records `field` (Grid::vel at node::velocity(dim)
+    // or kEndVelocity, or another field laid out the same way), at the nodes
     // of the grid's active box (Grid::active): the step's kernels read and
     // write no other. `fixity` is Grid::acc: its node::kFixity slot says
     // which fixities reach a node.

@@ -61,9 +61,11 @@ struct G2pMotionKernel {
         const std::size_t si = args.set;
         ParticleSet &s = t.sets[si];
         using St = Stencil<D, S>;
-        // In 2D, v and v~ are a record's first half (node::end_velocity).
-        using R = std::conditional_t<D == 2, typename HalfRecord<Lanes>::type, Lanes>;
-        const std::size_t ve = node::end_velocity(D);
+        // The gradient and offset sums read v~ alone, a record's first
+        // half; in 2D v is in that half too (node::kEndVelocity).
+        using H = typename HalfRecord<Lanes>::type;
+        using R = std::conditional_t<D == 2, H, Lanes>;
+        const std::size_t ve = node::kEndVelocity, vs = node::velocity(D);
         // With the update fused in: the block's gradients, by columns
         // (MaterialUpdate::gradient_buffer).
         double *L_block = Kinematics ? args.blocks->buffer() : nullptr;
@@ -74,12 +76,13 @@ struct G2pMotionKernel {
         auto finish = [&](const auto &st, std::size_t p) __attribute__((always_inline)) {
             // Sums over the nodes of the records (v, v~): by the weight,
             // the gradient and the weighted offset.
-            R sum, dsum[D], osum[D];
+            R sum;
+            H dsum[D], osum[D];
             st.template gather<Gradient, T::moments>(g, vel, sum, dsum, osum);
             double vpic[D], vold[D], L[D][D], B[D][D], step[D];
             for (int d = 0; d < D; ++d) {
                 vpic[d] = sum[ve + static_cast<std::size_t>(d)];
-                vold[d] = sum[node::kVelocity + static_cast<std::size_t>(d)];
+                vold[d] = sum[vs + static_cast<std::size_t>(d)];
                 for (int c = 0; c < D; ++c) {
                     L[d][c] = Gradient ? dsum[c][ve + static_cast<std::size_t>(d)] : 0.0;
                     B[d][c] = T::moments ? osum[c][ve + static_cast<std::size_t>(d)] : 0.0;

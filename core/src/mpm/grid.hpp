@@ -28,11 +28,12 @@ inline constexpr std::size_t kRecord = 8;
 // set when a particle of particle_velocities[k] reaches the node (exact in
 // a double: 32 bits).
 inline constexpr std::size_t kMass = 0, kMomentum = 1, kForce = 4, kFixity = 7;
-// The velocities (Grid::vel): v at the start of the step, v~ at its end,
-// right after it: in 2D both fit the record's first four doubles, which is
-// all the 2D G2P reads (half records, stencil.hpp).
-inline constexpr std::size_t kVelocity = 0;
-constexpr std::size_t end_velocity(int dim) { return static_cast<std::size_t>(dim); }
+// The velocities (Grid::vel): v~ at the end of the step first, then v at
+// its start. The G2P's gradient and offset sums read v~ alone: a record's
+// first half (half records, stencil.hpp); in 2D both fit that half, and
+// the 2D G2P reads nothing else.
+inline constexpr std::size_t kEndVelocity = 0;
+constexpr std::size_t velocity(int dim) { return dim == 2 ? 2 : 4; }
 } // namespace node
 
 // What a kernel needs to find a particle's nodes: plain values, copied

@@ -14,7 +14,7 @@ template <bool Update, DampingKind Damping = DampingKind::none>
 void velocities(Grid &grid, const Boundary &bc, double t, double dt, double alpha = 0.0) {
     double *a = grid.acc.data(), *v = grid.vel.data();
     const int D = grid.geo.dim;
-    const std::size_t ve = node::end_velocity(D);
+    const std::size_t vs = node::velocity(D), ve = node::kEndVelocity;
     // v = p / m everywhere and, when updating, v~ = v + dt f / m in the same
     // pass; the constrained nodes are then redone in order (conditions on v,
     // v~ from the constrained v, conditions on v~), which matters for
@@ -25,7 +25,7 @@ void velocities(Grid &grid, const Boundary &bc, double t, double dt, double alph
         const double inv = m > 0.0 ? 1.0 / m : 0.0;
         for (std::size_t d = 0; d < static_cast<std::size_t>(D); ++d) {
             const double v0 = a[kRecord * i + node::kMomentum + d] * inv;
-            v[kRecord * i + node::kVelocity + d] = v0;
+            v[kRecord * i + vs + d] = v0;
             if constexpr (Update) {
                 double &f = a[kRecord * i + node::kForce + d];
                 // Damping changes the force itself, so that the constrained
@@ -39,14 +39,14 @@ void velocities(Grid &grid, const Boundary &bc, double t, double dt, double alph
             }
         }
     });
-    bc.apply(grid, v, node::kVelocity, a, t);
+    bc.apply(grid, v, vs, a, t);
     if constexpr (!Update) return;
     bc.for_each_constrained_node(grid, [&](std::size_t i) {
         const double m = a[kRecord * i + node::kMass];
         const double inv = m > 0.0 ? 1.0 / m : 0.0;
         for (std::size_t d = 0; d < static_cast<std::size_t>(D); ++d)
             v[kRecord * i + ve + d] =
-                v[kRecord * i + node::kVelocity + d] + dt * a[kRecord * i + node::kForce + d] * inv;
+                v[kRecord * i + vs + d] + dt * a[kRecord * i + node::kForce + d] * inv;
     });
     bc.apply(grid, v, ve, a, t + dt);
 }
@@ -80,11 +80,12 @@ void remapped_velocity(Grid &grid, const Boundary &bc, double t_end, bool mean) 
                 m > 0.0 ? a[kRecord * i + node::kMomentum + d] / m : 0.0;
     });
     bc.apply(grid, a, node::kForce, a, t_end);
+    const std::size_t vs = node::velocity(grid.geo.dim);
     if (mean)
         grid.for_each_active_node([&](std::size_t i) {
             for (std::size_t d = 0; d < D; ++d) {
                 const std::size_t k = kRecord * i + d;
-                a[k + node::kMomentum] = 0.5 * (v[k + node::kVelocity] + a[k + node::kForce]);
+                a[k + node::kMomentum] = 0.5 * (v[k + vs] + a[k + node::kForce]);
             }
         });
 }

@@ -9,10 +9,10 @@
 namespace talus {
 
 // v = p / m (eq. 30) with the boundary conditions at t, into
-// Grid::vel[node::kVelocity].
+// Grid::vel[node::velocity(dim)].
 void grid_velocity(Grid &grid, const Boundary &bc, double t);
 // v as above, and v~ = v + dt f / m (eqs. 31-32) with the conditions at
-// t + dt into Grid::vel[node::end_velocity(dim)].
+// t + dt into Grid::vel[node::kEndVelocity].
 // With `damping`, the nodal force is damped first (DampingSpec), from the
 // velocity v at t.
 void grid_update(Grid &grid, const Boundary &bc, double t, double dt,

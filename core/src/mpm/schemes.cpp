@@ -7,7 +7,7 @@
 
 namespace talus {
 
-using node::kForce, node::kMomentum, node::kVelocity;
+using node::kForce, node::kMomentum;
 
 // Update stress last: L from v~, the particles move with v~ (or with
 // (v + v~) / 2 at second order).
@@ -33,7 +33,8 @@ void Simulation::Impl::usl_fused(double t, double dt) {
 void Simulation::Impl::usf(double t, double dt) {
     p2g_momentum();
     grid_velocity(t);
-    g2p_gradient(grid.vel.data(), kVelocity, kVelocity, dt);
+    const std::size_t v = node::velocity(grid.geo.dim);
+    g2p_gradient(grid.vel.data(), v, v, dt);
     material_update(t, dt);
     p2g_forces();
     grid_update(t, dt);
@@ -62,7 +63,7 @@ void Simulation::Impl::musl(double t, double dt) {
 void Simulation::Impl::usavg(double t, double dt) {
     p2g_momentum();
     grid_velocity(t);
-    g2p_gradient(grid.vel.data(), kVelocity, 0, 0.0);
+    g2p_gradient(grid.vel.data(), node::velocity(grid.geo.dim), 0, 0.0);
     material_update(t, 0.5 * dt);
     p2g_forces();
     grid_update(t, dt);

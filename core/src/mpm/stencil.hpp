@@ -33,6 +33,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <type_traits>
 
 namespace talus {
 
@@ -59,9 +60,10 @@ inline constexpr int kLanes = static_cast<int>(node::kRecord);
 // All are passed by reference only: a vector by value would change the
 // calling convention with the target's vector width.
 //
-// A kernel that needs only a record's first four doubles (the 2D G2P: v
-// and v~, node::end_velocity) runs on half records (HalfRecord below:
-// Vec4, Split<N, 4>): half the multiply-adds and the loads of a whole
+// Sums that need only a record's first four doubles run on half records
+// (HalfRecord below: Vec4, Split<N, 4>): the G2P's gradient and offset
+// sums, which read v~ alone (node::kEndVelocity), and in 2D all of its
+// sums (v~ and v fit a half). Half the multiply-adds and loads of a whole
 // record, and on a processor that splits a 512-bit operation in two (AMD
 // Zen 4), half the cycles. The sums are the same, lane by lane.
 typedef double Vec8 __attribute__((vector_size(8 * sizeof(double))));
@@ -127,6 +129,20 @@ struct HalfRecord<Split<N>> {
 // The doubles of a record a type holds (8, or 4 for a half record).
 template <class Lanes>
 inline constexpr std::size_t kRecordLanes = sizeof(Lanes) / sizeof(double);
+
+// h = the first half of v (the values only move).
+[[gnu::always_inline]] inline void first_half(const Vec8 &v, Vec4 &h) {
+#if defined(__has_builtin) && __has_builtin(__builtin_shufflevector)
+    h = __builtin_shufflevector(v, v, 0, 1, 2, 3);
+#else
+    std::memcpy(&h, &v, sizeof h);
+#endif
+}
+template <int N>
+[[gnu::always_inline]] inline void first_half(const Split<N> &v, Split<N, kLanes / 2> &h) {
+    for (int i = 0; i < kLanes / 2 / N; ++i)
+        h.q[i] = v.q[i];
+}
 
 // Lane k of a record's worth of values, for any of the types.
 [[gnu::always_inline]] inline void set_lane(Vec8 &v, std::size_t k, double x) { v[k] = x; }
@@ -227,38 +243,53 @@ struct StencilSums {
     // Gather: sum_i w_i r_i into `value`, sum_i (dw_i/dx_d) r_i into
     // grad[d], and sum_i w_i (x_i - x_p)_d r_i into offs[d], over the node
     // records r_i (Gradients, Offsets: whether grad and off are wanted).
-    template <bool Gradients, bool Offsets, class Lanes>
+    // G: the type of grad and offs, Lanes or its half record (the sums of
+    // the records' first halves alone).
+    template <bool Gradients, bool Offsets, class Lanes, class G>
     [[gnu::always_inline]] void gather(const GridGeometry &g, const double *records, Lanes &value,
-                                       Lanes (&grad)[D], Lanes (&offs)[D]) const {
+                                       G (&grad)[D], G (&offs)[D]) const {
+        constexpr bool half = !std::is_same_v<Lanes, G>;
         const Self &st = self();
         const Slots sl = slots(g);
         value = Lanes{};
         for (int d = 0; d < D; ++d)
-            grad[d] = offs[d] = Lanes{};
+            grad[d] = offs[d] = G{};
         for (int c = 0; c < (D == 3 ? W : 1); ++c)
             for (int b = 0; b < W; ++b) {
                 const double *row = records + node::kRecord * row_slot(sl, b, c);
                 // The row's sums over x: by w_x, dw_x and w_x off_x.
-                Lanes S0{}, S1{}, S2{};
+                Lanes S0{};
+                G S1{}, S2{};
                 for (int x = 0; x < W; ++x) {
+                    const double *rec = row + node::kRecord * static_cast<std::size_t>(x);
                     Lanes r;
-                    load_record(row + node::kRecord * static_cast<std::size_t>(x), r);
+                    load_record(rec, r);
                     S0 += st.weight(0, x) * r;
-                    if constexpr (Gradients) S1 += st.slope(0, x) * r;
-                    if constexpr (Offsets) S2 += st.weighted_offset(0, x) * r;
+                    G rg;
+                    if constexpr (half)
+                        load_record(rec, rg);
+                    else
+                        rg = r;
+                    if constexpr (Gradients) S1 += st.slope(0, x) * rg;
+                    if constexpr (Offsets) S2 += st.weighted_offset(0, x) * rg;
                 }
                 const double wz = D == 3 ? st.weight(D - 1, c) : 1.0;
                 const double wyz = st.weight(1, b) * wz;
                 value += wyz * S0;
+                G S0g;
+                if constexpr (half)
+                    first_half(S0, S0g);
+                else
+                    S0g = S0;
                 if constexpr (Gradients) {
                     grad[0] += wyz * S1;
-                    grad[1] += (st.slope(1, b) * wz) * S0;
-                    if constexpr (D == 3) grad[2] += (st.weight(1, b) * st.slope(2, c)) * S0;
+                    grad[1] += (st.slope(1, b) * wz) * S0g;
+                    if constexpr (D == 3) grad[2] += (st.weight(1, b) * st.slope(2, c)) * S0g;
                 }
                 if constexpr (Offsets) {
                     offs[0] += wyz * S2;
-                    offs[1] += (wyz * st.offset(1, b)) * S0;
-                    if constexpr (D == 3) offs[2] += (wyz * st.offset(2, c)) * S0;
+                    offs[1] += (wyz * st.offset(1, b)) * S0g;
+                    if constexpr (D == 3) offs[2] += (wyz * st.offset(2, c)) * S0g;
                 }
             }
     }

@@ -159,6 +159,22 @@ void check_with(talus::ShapeKind kind) {
                 ASSERT_NEAR(osum[d][k], so[d], 1e-13 * g.h) << "offset, axis " << d;
             }
         }
+        // The G2P's gather: the values whole, the gradient and offset sums
+        // of the first halves alone (half records). The same operations on
+        // the same lanes: the same bits as the whole gather's.
+        if constexpr (K == talus::kLanes) {
+            using H = typename talus::HalfRecord<Lanes>::type;
+            Lanes hsum;
+            H hd[D], ho[D];
+            st.template gather<true, true>(g, records.data(), hsum, hd, ho);
+            for (int k = 0; k < K; ++k)
+                ASSERT_EQ(hsum[k], sum[k]) << "mixed gather, lane " << k << " trial " << trial;
+            for (int k = 0; k < K / 2; ++k)
+                for (int d = 0; d < D; ++d) {
+                    ASSERT_EQ(hd[d][k], dsum[d][k]) << "mixed gradient, axis " << d;
+                    ASSERT_EQ(ho[d][k], osum[d][k]) << "mixed offset, axis " << d;
+                }
+        }
     }
 }
 
