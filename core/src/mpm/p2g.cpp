@@ -42,18 +42,24 @@ template <class L, Isa I, int D, class S, bool Mass, bool Momentum, bool Affine,
     const double *grav = src.loads.gravity();
     using St = Stencil<D, S>;
     // One particle's contributions, scattered through its stencil st (a
-    // Stencil or a lane of a StencilPack).
+    // Stencil or a lane of a StencilPack), by record halves (stencil.hpp):
+    // mass and momentum in the first, the force in the second.
+    using H = typename HalfRecord<L>::type;
+    constexpr std::size_t half = node::kRecord / 2;
+    static_assert(node::kMass < half && node::kMomentum + 3 <= half && node::kForce == half,
+                  "mass and momentum fill a record's first half, the force its second");
+    constexpr std::size_t f = node::kForce - half; // the force's first lane in the second half
     auto scatter = [&](const auto &st, std::size_t p) __attribute__((always_inline)) {
         const double m = s.mass[p];
         // Per unit weight: mass and momentum (eqs. 28-29) and the
         // external force (eq. 21); per unit gradient along c: the
         // internal force -V sigma[:, c] (eq. 20); per unit weight
         // and offset along c: the affine momentum m C[:, c].
-        L a{}, grad[D]{}, offs[D]{};
-        if constexpr (Mass) set_lane(a, node::kMass, m);
+        H a_lo{}, a_hi{}, grad[D]{}, offs[D]{};
+        if constexpr (Mass) set_lane(a_lo, node::kMass, m);
         if constexpr (Momentum)
             for (int d = 0; d < D; ++d)
-                set_lane(a, node::kMomentum + static_cast<std::size_t>(d),
+                set_lane(a_lo, node::kMomentum + static_cast<std::size_t>(d),
                          m * s.v[static_cast<std::size_t>(d)][p]);
         if constexpr (Affine)
             for (int r = 0; r < D; ++r)
@@ -64,7 +70,6 @@ template <class L, Isa I, int D, class S, bool Mass, bool Momentum, bool Affine,
             const double V = s.J[p] * s.vol0[p];
             const double *sg = &s.stress[6 * p];
             // Voigt (xx, yy, zz, xy, yz, zx); the in-plane part for D = 2.
-            constexpr std::size_t f = node::kForce;
             set_lane(grad[0], f, -V * sg[0]);
             set_lane(grad[1], f + 1, -V * sg[1]);
             set_lane(grad[0], f + 1, -V * sg[3]);
@@ -79,9 +84,9 @@ template <class L, Isa I, int D, class S, bool Mass, bool Momentum, bool Affine,
             double fext[D] = {};
             if (s.load_mask[p]) src.loads.particle_force<D>(s.load_mask[p], s.group[p], fext);
             for (int d = 0; d < D; ++d)
-                set_lane(a, f + static_cast<std::size_t>(d), fext[d] + m * grav[d]);
+                set_lane(a_hi, f + static_cast<std::size_t>(d), fext[d] + m * grav[d]);
         }
-        st.template scatter<Forces, Affine>(g, acc, a, grad, offs);
+        st.template scatter<Forces, Forces, Affine>(g, acc, a_lo, a_hi, grad, offs);
         // The nodes a fixed particle reaches carry its fixity
         // (Boundary::apply): a constraint the grid sees.
         if (const std::uint32_t fixed = Mass ? s.fix_mask[p] : 0u) [[unlikely]]

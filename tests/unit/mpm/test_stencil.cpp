@@ -112,30 +112,51 @@ void check_with(talus::ShapeKind kind) {
             st.template eval<false, true>(g, cs.set, 0);
         const auto ref = cs.nodes(near);
 
-        // A half record (the 2D G2P's) is a record's first K doubles.
+        // A half record (the G2P's) is a record's first K doubles.
         constexpr int K = static_cast<int>(talus::kRecordLanes<Lanes>);
-        Lanes a{}, grad[D]{}, offs[D]{};
-        for (int k = 0; k < K; ++k) {
-            talus::set_lane(a, static_cast<std::size_t>(k), unit(rng));
-            for (int d = 0; d < D; ++d) {
-                talus::set_lane(grad[d], static_cast<std::size_t>(k), unit(rng));
-                // an affine matrix of order 1/h
-                talus::set_lane(offs[d], static_cast<std::size_t>(k), unit(rng) / g.h);
-            }
-        }
         std::vector<double> records(cs.grid.acc.size(), 0.0);
-        st.template scatter<true, true, Lanes>(g, records.data(), a, grad, offs);
-        std::vector<double> expect(records.size(), 0.0);
-        for (const auto &r : ref)
-            for (int k = 0; k < K; ++k) {
-                double v = r.w * a[k];
-                for (int d = 0; d < D; ++d)
-                    v += r.grad[d] * grad[d][k] + r.w * r.off[d] * offs[d][k];
-                expect[talus::node::kRecord * r.slot + static_cast<std::size_t>(k)] += v;
+        // The scatter (P2G), by record halves: random values on every lane
+        // of a, on the second half of the gradient terms and the first of
+        // the offset terms, zeros elsewhere; and a momentum-only scatter
+        // (Upper false), which must leave the second halves alone.
+        if constexpr (K == talus::kLanes)
+            for (bool upper : {true, false}) {
+                using H = typename talus::HalfRecord<Lanes>::type;
+                constexpr std::size_t half = talus::node::kRecord / 2;
+                double a[8] = {}, grad[D][8] = {}, offs[D][8] = {};
+                H a_lo{}, a_hi{}, gh[D]{}, ol[D]{};
+                for (std::size_t k = 0; k < 8; ++k) {
+                    const bool hi = k >= half;
+                    if (hi && !upper) continue;
+                    a[k] = unit(rng);
+                    talus::set_lane(hi ? a_hi : a_lo, k % half, a[k]);
+                    for (int d = 0; d < D; ++d)
+                        if (hi) {
+                            grad[d][k] = unit(rng);
+                            talus::set_lane(gh[d], k - half, grad[d][k]);
+                        } else {
+                            offs[d][k] = unit(rng) / g.h; // an affine matrix of order 1/h
+                            talus::set_lane(ol[d], k, offs[d][k]);
+                        }
+                }
+                std::fill(records.begin(), records.end(), 0.0);
+                if (upper)
+                    st.template scatter<true, true, true>(g, records.data(), a_lo, a_hi, gh, ol);
+                else
+                    st.template scatter<false, false, true>(g, records.data(), a_lo, a_hi, gh, ol);
+                std::vector<double> expect(records.size(), 0.0);
+                for (const auto &r : ref)
+                    for (std::size_t k = 0; k < 8; ++k) {
+                        double v = r.w * a[k];
+                        for (int d = 0; d < D; ++d)
+                            v += r.grad[d] * grad[d][k] + r.w * r.off[d] * offs[d][k];
+                        expect[talus::node::kRecord * r.slot + k] += v;
+                    }
+                for (std::size_t i = 0; i < records.size(); ++i)
+                    ASSERT_NEAR(records[i], expect[i], 1e-13 * (1.0 + 1.0 / g.h))
+                        << "scatter, record value " << i << " trial " << trial
+                        << (upper ? "" : ", first halves only");
             }
-        for (std::size_t i = 0; i < records.size(); ++i)
-            ASSERT_NEAR(records[i], expect[i], 1e-13 * (1.0 + 1.0 / g.h))
-                << "scatter, record value " << i << " trial " << trial;
 
         // Gather of random records.
         for (double &v : records)
