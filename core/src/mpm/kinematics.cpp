@@ -61,6 +61,7 @@ template <int D, bool Rotate>
                                              const BlockIncrement &out, double *divv) {
     double F0[9], L[9], F1[9];
     std::memcpy(F0, &s.F[9 * p], sizeof F0);
+    std::memcpy(out.F_start + 9 * k, F0, sizeof F0);
     Lg.copy(k, L);
     double J;
     deformation<D>(F0, L, dt, F1, J);
@@ -128,7 +129,7 @@ template <int N, int D, bool Rotate>
         else
             for (std::size_t c = 0; c < 9; ++c)
                 load_lanes<N>(Lk + c * L.component, L.point, Lv[c]);
-        load_points<N>(&s.F[9 * p], F0);
+        load_points_copying<N>(&s.F[9 * p], out.F_start + 9 * k, F0);
         V J;
         deformation<D>(F0, Lv, dt, F1, J);
         // An inverted point (J <= 0 or NaN), or (plane strain, rotated
@@ -152,7 +153,7 @@ template <int N, int D, bool Rotate>
         std::memcpy(&s.J[p], &J, sizeof J);
         const V rho = rho0 / J;
         std::memcpy(out.rho + k, &rho, sizeof rho);
-        store_points<N>(&s.F[9 * p], F1); // over F0, kept in out.F_start
+        store_points<N>(&s.F[9 * p], F1); // over F0, copied to out.F_start
         const V de[6] = {dt * Lv[0],           dt * Lv[4],           dt * Lv[8],
                          dt * (Lv[1] + Lv[3]), dt * (Lv[5] + Lv[7]), dt * (Lv[2] + Lv[6])};
         store_points<N>(out.de + 6 * k, de);
@@ -263,8 +264,6 @@ void stress_work_block(ParticleSet &s, std::size_t begin, std::size_t count, con
 
 std::size_t kinematics_block(ParticleSet &s, std::size_t begin, std::size_t count,
                              const Gradients &L, double dt, const BlockIncrement &out, Isa isa) {
-    // The start F aside in one contiguous copy, then F1 over it in place.
-    std::memcpy(out.F_start, &s.F[9 * begin], 9 * count * sizeof(double));
 #if TALUS_HAS_ISA_VERSIONS
     if (isa == Isa::avx512) return block_avx512(s, begin, count, L, dt, out);
     if (isa == Isa::avx2) return block_avx2(s, begin, count, L, dt, out);

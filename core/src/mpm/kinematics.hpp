@@ -34,7 +34,8 @@ struct Inversion {
 // and k.
 struct BlockIncrement {
     // F at the start of the step, 9 per point, row-major: the particle's F
-    // is F at the end once the kinematics are done, and this copy is what a
+    // is F at the end once the kinematics are done, and this copy (of the
+    // points done: the copy is taken as each pack is loaded) is what a
     // retry (cut step) or a failed step's restore starts from.
     double *F_start;
     // The start stress as the model gets it, 6 per point (Voigt): turned by
@@ -83,7 +84,7 @@ struct Gradients {
 
 // Points [begin, begin + count) of s from their velocity gradients L
 // (Gradients): F at the end of the step (eq. 39, in
-// the particle, the start F copied to out.F_start first), J
+// the particle, the start F copied to out.F_start as it is read), J
 // (kept in the particle), rho (eq. 41), the strain increment (eq. 42), div
 // v, the start stress as the model gets it (out.stress_start: for
 // strain-increment models objectively rotated, Hughes-Winget), and the
