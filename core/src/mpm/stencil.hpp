@@ -8,11 +8,12 @@
 // offsets from the particle (the affine transfers) are per axis too. The
 // kernels never form the W^D node weights: they sum by factors (the sum
 // factorisation of spectral elements), a row of W nodes along x at a time,
-// with one or two multiply-adds of a whole node record (8 doubles, node::)
-// per node. A record is 8 consecutive doubles and a row is W consecutive
-// records; the record arithmetic is written on vector types (Vec8, Quad8,
-// Arr8 below), and each kernel is compiled once per instruction set
-// (IsaVersions, isa.hpp): on AVX-512 a record is one instruction.
+// with one to three multiply-adds of a node record (8 doubles, node::) or
+// of its halves per node. A record is 8 consecutive doubles and a row is W
+// consecutive records; the record arithmetic is written on vector types
+// (Vec8, Quad8, Arr8 and their halves below), and each kernel is compiled
+// once per instruction set (IsaVersions, isa.hpp): on AVX-512 a record is
+// one instruction.
 //
 // The stencils themselves are evaluated for N particles at once where the
 // kernel allows (StencilPack: the B-splines away from the faces), one
@@ -132,7 +133,7 @@ inline constexpr std::size_t kRecordLanes = sizeof(Lanes) / sizeof(double);
 
 // h = the first half of v (the values only move).
 [[gnu::always_inline]] inline void first_half(const Vec8 &v, Vec4 &h) {
-#if defined(__has_builtin) && __has_builtin(__builtin_shufflevector)
+#if TALUS_HAS_SHUFFLEVECTOR // lanes.hpp
     h = __builtin_shufflevector(v, v, 0, 1, 2, 3);
 #else
     std::memcpy(&h, &v, sizeof h);
