@@ -240,45 +240,44 @@ using V8 = Lanes<8>::V;
 #endif
 } // namespace lanes_detail
 
-template <int N, int C, class V>
-[[gnu::always_inline]] inline void load_points(const double *base, V (&out)[C]) {
-#if TALUS_HAS_SHUFFLEVECTOR
-    if constexpr (N == 8 && (C == 6 || C == 9)) {
-        V v[C];
-        for (int j = 0; j < C; ++j)
-            load_vector<8>(base + 8 * j, v[j]);
-        if constexpr (C == 6)
-            lanes_detail::aos6_to_lanes(v, out);
-        else
-            lanes_detail::aos9_to_lanes(v, out);
-        return;
-    }
-#endif
-    for (int c = 0; c < C; ++c)
-        load_lanes<N>(base + c, C, out[c]);
-}
-// load_points, and the N C doubles copied to `copy` as they are (from the
-// vectors the transpose starts from, with no second read of base).
-template <int N, int C, class V>
-[[gnu::always_inline]] inline void load_points_copying(const double *base, double *copy,
-                                                       V (&out)[C]) {
+namespace lanes_detail {
+// load_points, and with Copy the N C doubles copied to `copy` as they are
+// (from the vectors the transpose starts from, with no second read of
+// base).
+template <int N, bool Copy, int C, class V>
+[[gnu::always_inline]] inline void load_points(const double *base, double *copy, V (&out)[C]) {
 #if TALUS_HAS_SHUFFLEVECTOR
     if constexpr (N == 8 && (C == 6 || C == 9)) {
         V v[C];
         for (int j = 0; j < C; ++j) {
             load_vector<8>(base + 8 * j, v[j]);
-            store_vector<8>(copy + 8 * j, v[j]);
+            if constexpr (Copy) store_vector<8>(copy + 8 * j, v[j]);
         }
         if constexpr (C == 6)
-            lanes_detail::aos6_to_lanes(v, out);
+            aos6_to_lanes(v, out);
         else
-            lanes_detail::aos9_to_lanes(v, out);
+            aos9_to_lanes(v, out);
         return;
     }
 #endif
-    for (int j = 0; j < N * C; ++j)
-        copy[j] = base[j];
-    load_points<N>(base, out);
+    if constexpr (Copy)
+        for (int j = 0; j < N * C; ++j)
+            copy[j] = base[j];
+    for (int c = 0; c < C; ++c)
+        load_lanes<N>(base + c, C, out[c]);
+}
+} // namespace lanes_detail
+
+template <int N, int C, class V>
+[[gnu::always_inline]] inline void load_points(const double *base, V (&out)[C]) {
+    lanes_detail::load_points<N, false>(base, nullptr, out);
+}
+// load_points, and the N C doubles copied to `copy` as they are, from the
+// vectors the transpose starts from (no second read of base).
+template <int N, int C, class V>
+[[gnu::always_inline]] inline void load_points_copying(const double *base, double *copy,
+                                                       V (&out)[C]) {
+    lanes_detail::load_points<N, true>(base, copy, out);
 }
 template <int N, int C, class V>
 [[gnu::always_inline]] inline void store_points(double *base, const V (&in)[C]) {
