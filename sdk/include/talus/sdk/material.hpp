@@ -49,11 +49,11 @@
 #include <exception>
 #include <limits>
 #include <new>
-#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <type_traits>
 
 namespace talus::sdk {
 
@@ -338,9 +338,13 @@ inline constexpr std::size_t kGroupSize = 8;
 // state_end holds a copy of the start state on entry. A point the pass
 // finishes gets its whole result: stress_end, the state values that change,
 // wave_speed[k] when wave_speed is not null, the tangent when tangent is
-// not null, and done[k] = 1. A point it leaves keeps done[k] = 0 and its
-// stress_end and state_end untouched (they may be the start arrays); its
-// wave_speed and tangent entries may be written, update() overwrites them.
+// not null, and done[k] = 1. A point it leaves keeps done[k] = 0; its
+// stress_end and state_end stay untouched where they are the start arrays
+// (stress_end == stress_start, state_end == state_start: update() reads its
+// inputs from them) and may be written where they are not, as may its
+// wave_speed and tangent entries: update() writes them all again (a pass
+// over vectors of points then stores a whole vector without keeping the
+// unfinished points' old values).
 // The pass must not throw (a failure would name the chunk's first point):
 // a point it cannot finish is left to update().
 struct Points {
@@ -735,18 +739,31 @@ struct Descriptors {
                                          want_t ? b->tangent + 36 * c0 : nullptr,
                                          done.data()};
                         self.quick_update(pts);
+                        // The points left, listed without a branch per
+                        // point (every index written, the count advanced
+                        // past the ones left): where elastic and plastic
+                        // points mix, the branch was mispredicted at
+                        // every change.
                         std::size_t n_rest = 0;
-                        for (std::size_t k = 0; k < m; ++k)
-                            if (!done[k]) rest[n_rest++] = static_cast<std::uint32_t>(c0 + k);
+                        for (std::size_t k = 0; k < m; ++k) {
+                            rest[n_rest] = static_cast<std::uint32_t>(c0 + k);
+                            n_rest += done[k] == 0 ? 1u : 0u;
+                        }
                         std::size_t j = 0;
                         if constexpr (has_group_update)
                             while (j + 1 < n_rest) {
                                 const std::size_t g = std::min(kGroupSize, n_rest - j);
-                                std::optional<Slot> slots[kGroupSize];
+                                // Uninitialised room for the slots: an
+                                // array of std::optional<Slot> was zeroed
+                                // whole (4.7 kB) for every group.
+                                static_assert(std::is_trivially_destructible_v<Slot>);
+                                alignas(Slot) std::byte room[kGroupSize][sizeof(Slot)];
+                                Slot *slots[kGroupSize];
                                 const PointIn *ins[kGroupSize];
                                 PointOut *outs[kGroupSize];
                                 for (std::size_t k = 0; k < g; ++k) {
-                                    slots[k].emplace(ctx, rest[j + k]);
+                                    slots[k] =
+                                        ::new (static_cast<void *>(room[k])) Slot(ctx, rest[j + k]);
                                     ins[k] = &slots[k]->in;
                                     outs[k] = &slots[k]->out;
                                 }
