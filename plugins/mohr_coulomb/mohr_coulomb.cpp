@@ -24,6 +24,7 @@
 //
 // The host rotates sigma_start objectively before the call (the model is not
 // TALUS_MODEL_FINITE_STRAIN); the model works on the strain increment.
+#include "elastic_screen.hpp"
 #include "principal_return.hpp"
 
 #include <talus/sdk/material.hpp>
@@ -223,6 +224,11 @@ struct MohrCoulomb {
         moduli_ << 2.0 * el_.shear, 2.0 * el_.shear, 2.0 * el_.shear, el_.shear, el_.shear,
             el_.shear;
         normal_ << 1.0, 1.0, 1.0, 0.0, 0.0, 0.0;
+        screen_.lambda = el_.lambda;
+        for (int i = 0; i < 6; ++i) {
+            screen_.moduli[i] = moduli_[i];
+            screen_.normal[i] = normal_[i];
+        }
     }
 
     // The points of a chunk whose trial stress is clearly inside the
@@ -230,7 +236,20 @@ struct MohrCoulomb {
     // per-point set-up: most points of a batch (74 % of the 3D benchmark
     // block's point-steps). The others go to update_group() and update().
     void quick_update(const talus::sdk::Points &p) const {
-        for (std::size_t k = 0; k < p.n; ++k) {
+        std::size_t k = 0;
+#if defined(TALUS_MC_HAS_QUAD_SCREEN)
+        // Four points a vector where the processor has AVX and the
+        // strength is the same for every point; the rest point by point.
+        if (!softening_ && talus_mc::quad_screen_available())
+            k = talus_mc::quad::screen_quads(screen_, fixed_strength_, fixed_lode_bound_,
+                                             fixed_inv_lode_bound_, p.n, p.stress_start,
+                                             p.strain_increment, p.stress_end, p.state_end,
+                                             state.size(), p.done);
+        if (p.tangent)
+            for (std::size_t j = 0; j < k; ++j)
+                if (p.done[j]) Eigen::Map<Mat6>(p.tangent + 36 * j) = De_; // symmetric
+#endif
+        for (; k < p.n; ++k) {
             Vec6 trial;
             if (!elastic_trial(Eigen::Map<const Vec6>(p.stress_start + 6 * k),
                                Eigen::Map<const Vec6>(p.strain_increment + 6 * k),
@@ -431,37 +450,13 @@ struct MohrCoulomb {
         return std::sqrt(1.0 + st.sin_phi * st.sin_phi / 3.0);
     }
     // Whether the trial stress is inside the surface by more than the
-    // return's tolerance, decided from the invariants without eigenvalues
-    // (most points' case; the decomposition costs more than the rest of an
-    // elastic step). With p the mean stress, J2 the second deviatoric
-    // invariant, q = sqrt(J2) and theta the Lode angle, s1 - s3 = 2 q
-    // cos(theta) and s2 - p = 2 q sin(theta) / sqrt(3), so (1 + sin phi) s1 -
-    // (1 - sin phi) s3 = 2 p sin phi + 2 q (cos(theta) - sin(phi)
-    // sin(theta) / sqrt(3)) <= 2 p sin phi + 2 q b, b = sqrt(1 + sin^2(phi)
-    // / 3), and s1 <= p + 2 q / sqrt(3). The test asks both bounds to stay
-    // below the surface by twice the return's tolerance (rounding here is
-    // ~1e-15 of the stress, the tolerance 1e-10): the exact test then finds
-    // the point inside and off the surface, and the result is the full
-    // path's, bit for bit. Without square root: with R = c cos phi - p sin
-    // phi, the shear bound is q b < R - tol / 2, where the tolerance
-    // 2e-10 max(|p| + 2 q / sqrt(3), c) is taken at q = R / b, which it
-    // exceeds whenever the test passes; both sides are then squared.
-    // `bound`: lode_bound(st), `inv_bound` its inverse.
+    // return's tolerance (elastic_screen.hpp, whose four-lane form the quick
+    // pass runs: the same operations). `bound`: lode_bound(st), `inv_bound`
+    // its inverse.
     static bool clearly_elastic(const Vec6 &t, const Strength &st, double bound, double inv_bound) {
-        constexpr double k = 1.1547005383792515; // 2 / sqrt(3)
-        const double p = (t[0] + t[1] + t[2]) * (1.0 / 3.0);
-        const double J2 = ((t[0] - t[1]) * (t[0] - t[1]) + (t[1] - t[2]) * (t[1] - t[2]) +
-                           (t[2] - t[0]) * (t[2] - t[0])) *
-                              (1.0 / 6.0) +
-                          t[3] * t[3] + t[4] * t[4] + t[5] * t[5];
-        const double R = st.cohesion * st.cos_phi - p * st.sin_phi;
-        if (!(R > 0.0)) return false;
-        const double tol = 2e-10 * std::max({std::abs(p) + k * R * inv_bound, st.cohesion, 1e-300});
-        const double shear = R - 0.5 * tol;
-        if (!(shear > 0.0 && J2 * bound * bound < shear * shear)) return false;
-        if (!st.tension_active) return true;
-        const double tension = st.tension - tol - p; // s1 <= p + k q < T - tol
-        return tension > 0.0 && k * k * J2 < tension * tension;
+        bool in = false;
+        talus_mc::clearly_elastic(t.data(), st, bound, inv_bound, in);
+        return in;
     }
     // Within the validity tolerance of the shear plane or the cut-off.
     static bool on_surface(const V3 &s, const Strength &st) {
@@ -607,6 +602,7 @@ struct MohrCoulomb {
     Mat6 De_;
     Vec6 moduli_; // 2G on the normal components, G on the (engineering) shear ones
     Vec6 normal_; // 1 on the normal components
+    talus_mc::ScreenElastic screen_; // the same, for the quick pass's screen
     double phi_ = 0.0, psi_ = 0.0, c_ = 0.0, tension_ = 0.0;
     bool softening_ = false;
     double phi_r_ = 0.0, psi_r_ = 0.0, c_r_ = 0.0, k0_ = 0.0, k1_ = 0.0;

@@ -373,7 +373,10 @@ TEST(MohrCoulomb, ReturnCandidatesPartitionTheTrialSpace) {
 // rotated frame, must still be returned onto it, and those just inside
 // must stay as they are. Outside by 1e-8 to 1e-3 of the stress (the
 // return's tolerance is 1e-10), inside by 1e-3 to 1e-1. From a zero start
-// stress with the trial as the elastic image of the increment.
+// stress with the trial as the elastic image of the increment. The same
+// points again in one batch, where the quick pass screens four at a time
+// (elastic_screen.hpp) and the verdicts near its threshold meet every lane
+// of the vector: each point's result the bits of its own call.
 TEST(MohrCoulomb, NearTheSurfaceTheElasticShortcutNeverDecidesWrongly) {
     talus::PluginRegistry reg;
     const double E = 1e7, nu = 0.3;
@@ -387,6 +390,8 @@ TEST(MohrCoulomb, NearTheSurfaceTheElasticShortcutNeverDecidesWrongly) {
     std::mt19937_64 rng(11);
     std::uniform_real_distribution<double> u(0.0, 1.0);
     int outside = 0, inside = 0;
+    talus::test::PointsIn all{0, 3, {}, {}, {}, {}, {}};
+    std::vector<double> alone_s, alone_q;
     for (int k = 0; k < 4000; ++k) {
         // An ordered principal trial on the shear surface (or the cut-off
         // where it is lower) at a random Lode angle and mean stress.
@@ -421,6 +426,15 @@ TEST(MohrCoulomb, NearTheSurfaceTheElasticShortcutNeverDecidesWrongly) {
         de << eps(0, 0), eps(1, 1), eps(2, 2), 2 * eps(0, 1), 2 * eps(1, 2), 2 * eps(0, 2);
         const Out o = call(*mi, Vec6::Zero(), de);
         ASSERT_TRUE(o.res.ok()) << o.res.message;
+        ++all.n;
+        all.s0.insert(all.s0.end(), 6, 0.0);
+        all.q0.insert(all.q0.end(), 3, 0.0);
+        all.de.insert(all.de.end(), de.data(), de.data() + 6);
+        all.rho.push_back(2000.0);
+        for (int i = 0; i < 9; ++i)
+            all.F.push_back(i % 4 == 0 ? 1.0 : 0.0);
+        alone_s.insert(alone_s.end(), o.stress.data(), o.stress.data() + 6);
+        alone_q.insert(alone_q.end(), o.state.begin(), o.state.end());
         const talus_mc::V3 after = principal(o.stress);
         const double f_after = std::max(talus_mc::shear_yield(after, st), after[0] - st.tension);
         if (out) {
@@ -438,6 +452,13 @@ TEST(MohrCoulomb, NearTheSurfaceTheElasticShortcutNeverDecidesWrongly) {
     }
     EXPECT_GT(outside, 1000);
     EXPECT_GT(inside, 1000);
+    // Exactly: == on every double.
+    for (const bool in_place : {false, true}) {
+        const talus::test::PointsOut batch =
+            talus::test::update_in_batches(*mi, all, all.n, in_place);
+        EXPECT_EQ(batch.s, alone_s) << (in_place ? "in place" : "");
+        EXPECT_EQ(batch.q, alone_q) << (in_place ? "in place" : "");
+    }
 }
 
 namespace {
