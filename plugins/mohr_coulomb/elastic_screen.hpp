@@ -7,7 +7,9 @@
 // the same order whichever form screened it: its trial stress and its
 // verdict are the same bits (IEEE additions and multiplications are
 // correctly rounded lane by lane; nothing here may be fused into a
-// multiply-add, and the vector form is compiled for AVX without FMA). That
+// multiply-add: the vector form's target, AVX2, has no FMA, and the plugin
+// is compiled with -ffp-contract=off for builds whose own target has it,
+// such as -march=native: CMakeLists.txt). That
 // keeps a point's result independent of its neighbours in the batch, which
 // decide which form it meets (tests/unit/plugins/test_mohr_coulomb.cpp).
 //
