@@ -11,11 +11,14 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <random>
 #include <string>
+#include <thread>
 #include <type_traits>
 #include <vector>
 
@@ -172,6 +175,44 @@ TEST(Ordering, BinsEveryParticleIntoItsSlabInMemoryOrder) {
         }
         for (std::size_t p = 0; p < s.n; ++p)
             ASSERT_EQ(seen[p], 1) << "particle " << p << " binned " << seen[p] << " times";
+    }
+    talus::par::set_threads(threads);
+}
+
+// The slabs' schedule (par::for_each_slab_by_colour, P2G's loop): every
+// slab once, and an odd slab only after both its even neighbours have
+// finished (it writes nodes they write), with two threads and no barrier
+// between the colours. Each even slab but the last sleeps, the later ones
+// longer, so that without the wait a thread would start an odd slab while
+// a neighbour is still running (the test fails with the wait removed).
+// Also a slab count of 1 and 2 (no odd slab with a right neighbour).
+TEST(Ordering, AnOddSlabStartsOnlyAfterBothEvenNeighboursFinish) {
+    const int threads = talus::par::max_threads();
+    talus::par::set_threads(2);
+    for (const int n : {1, 2, 3, 7, 13}) {
+        SCOPED_TRACE("slabs: " + std::to_string(n));
+        std::atomic<int> clock{0};
+        std::vector<int> start(static_cast<std::size_t>(n), -1),
+            end(static_cast<std::size_t>(n), -1);
+        std::vector<std::atomic<int>> runs(static_cast<std::size_t>(n));
+        talus::par::for_each_slab_by_colour(n, [&](int slab) {
+            const std::size_t i = static_cast<std::size_t>(slab);
+            ++runs[i];
+            start[i] = clock++;
+            if (slab % 2 == 0 && slab + 1 < n)
+                std::this_thread::sleep_for(std::chrono::milliseconds(5 + 5 * slab));
+            end[i] = clock++;
+        });
+        for (int slab = 0; slab < n; ++slab) {
+            const std::size_t i = static_cast<std::size_t>(slab);
+            EXPECT_EQ(runs[i].load(), 1) << "slab " << slab;
+            if (slab % 2 == 0) continue;
+            EXPECT_GT(start[i], end[i - 1]) << "odd slab " << slab << " before its left neighbour";
+            if (slab + 1 < n) {
+                EXPECT_GT(start[i], end[i + 1])
+                    << "odd slab " << slab << " before its right neighbour";
+            }
+        }
     }
     talus::par::set_threads(threads);
 }
