@@ -221,13 +221,10 @@ struct MohrCoulomb {
         fixed_lode_bound_ = lode_bound(fixed_strength_);
         fixed_inv_lode_bound_ = 1.0 / fixed_lode_bound_;
         fixed_systems_.emplace(fixed_strength_, el_);
-        moduli_ << 2.0 * el_.shear, 2.0 * el_.shear, 2.0 * el_.shear, el_.shear, el_.shear,
-            el_.shear;
-        normal_ << 1.0, 1.0, 1.0, 0.0, 0.0, 0.0;
         screen_.lambda = el_.lambda;
         for (int i = 0; i < 6; ++i) {
-            screen_.moduli[i] = moduli_[i];
-            screen_.normal[i] = normal_[i];
+            screen_.moduli[i] = i < 3 ? 2.0 * el_.shear : el_.shear;
+            screen_.normal[i] = i < 3 ? 1.0 : 0.0;
         }
     }
 
@@ -238,7 +235,7 @@ struct MohrCoulomb {
     void quick_update(const talus::sdk::Points &p) const {
         std::size_t k = 0;
 #if defined(TALUS_MC_HAS_QUAD_SCREEN)
-        // Four points a vector where the processor has AVX and the
+        // Four points a vector where the processor has AVX2 and the
         // strength is the same for every point; the rest point by point.
         if (!softening_ && talus_mc::quad_screen_available())
             k = talus_mc::quad::screen_quads(screen_, fixed_strength_, fixed_lode_bound_,
@@ -441,7 +438,8 @@ struct MohrCoulomb {
     // fifth of this model's update (so did an update of its first three
     // elements in place).
     Vec6 hooke(const Vec6 &de) const {
-        return de.cwiseProduct(moduli_) + (el_.lambda * (de[0] + de[1] + de[2])) * normal_;
+        return de.cwiseProduct(Eigen::Map<const Vec6>(screen_.moduli)) +
+               (el_.lambda * (de[0] + de[1] + de[2])) * Eigen::Map<const Vec6>(screen_.normal);
     }
 
     // max over the Lode angle of cos(theta) - sin(phi) sin(theta) / sqrt(3),
@@ -600,9 +598,9 @@ struct MohrCoulomb {
 
     Elastic el_;
     Mat6 De_;
-    Vec6 moduli_; // 2G on the normal components, G on the (engineering) shear ones
-    Vec6 normal_; // 1 on the normal components
-    talus_mc::ScreenElastic screen_; // the same, for the quick pass's screen
+    // lambda, the moduli 2G / G and the normal components' mask: hooke()'s
+    // and the quick pass's screen's (the same constants for both forms).
+    talus_mc::ScreenElastic screen_;
     double phi_ = 0.0, psi_ = 0.0, c_ = 0.0, tension_ = 0.0;
     bool softening_ = false;
     double phi_r_ = 0.0, psi_r_ = 0.0, c_r_ = 0.0, k0_ = 0.0, k1_ = 0.0;

@@ -136,10 +136,8 @@ template <class F>
 void for_each_slab_by_colour(int n_slabs, F &&f) {
     if (n_slabs <= 0) return;
     const int n_even = (n_slabs + 1) / 2;
-    std::unique_ptr<std::atomic<bool>[]> done(
-        new std::atomic<bool>[static_cast<std::size_t>(n_slabs)]);
-    for (int i = 0; i < n_slabs; ++i)
-        done[static_cast<std::size_t>(i)].store(false, std::memory_order_relaxed);
+    // One small allocation a pass (none inside the loop); all false.
+    const auto done = std::make_unique<std::atomic<bool>[]>(static_cast<std::size_t>(n_slabs));
     std::atomic<int> next{0};
     auto finished = [&](int slab) {
         return slab >= n_slabs ||
