@@ -117,7 +117,11 @@ template <class L, Isa I, int D, class S, bool Mass, bool Momentum, bool Affine,
         StencilPack<D, S, N> pack;
         for (; end - k >= N; k += N) {
             if (end - k >= (kPacksAhead + 1) * N) prefetch_pack(s, k[kPacksAhead * N]);
-            if (pack.template eval<Affine>(g, s, k)) [[likely]] {
+            // A slab's particles are mostly runs of consecutive indices:
+            // then the positions are one vector load an axis.
+            const bool run = k[N - 1] - k[0] == N - 1;
+            if (run ? pack.template eval_run<Affine>(g, s, k[0])
+                    : pack.template eval<Affine>(g, s, k)) [[likely]] {
                 for (int j = 0; j < N; ++j)
                     scatter(pack.lane(static_cast<std::size_t>(j)), k[j]);
             } else {
