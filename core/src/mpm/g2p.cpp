@@ -73,12 +73,10 @@ struct G2pMotionKernel {
         std::size_t block_begin = args.begin;
         // One particle, through its stencil st (a Stencil or a lane of a
         // StencilPack).
-        auto finish = [&](const auto &st, std::size_t p) __attribute__((always_inline)) {
-            // Sums over the nodes of the records (v, v~): by the weight,
-            // the gradient and the weighted offset.
-            R sum;
-            H dsum[D], osum[D];
-            st.template gather<Gradient, T::moments>(g, vel, sum, dsum, osum);
+        // One particle from its sums over the nodes of the records (v, v~):
+        // by the weight, the gradient and the weighted offset.
+        auto gathered = [&](const auto &st, std::size_t p, const R &sum, const H(&dsum)[D],
+                            const H(&osum)[D]) __attribute__((always_inline)) {
             double vpic[D], vold[D], L[D][D], B[D][D], step[D];
             for (int d = 0; d < D; ++d) {
                 vpic[d] = sum[ve + static_cast<std::size_t>(d)];
@@ -122,6 +120,111 @@ struct G2pMotionKernel {
                     s.dx[dd][p] = step[d];
             }
         };
+        auto finish = [&](const auto &st, std::size_t p) __attribute__((always_inline)) {
+            R sum;
+            H dsum[D], osum[D];
+            st.template gather<Gradient, T::moments>(g, vel, sum, dsum, osum);
+            gathered(st, p, sum, dsum, osum);
+        };
+        // With the kinematics fused in (FLIP/PIC, AVX-512): the particle side
+        // of a pack of 8 across the vector lanes. Each particle's sums go to
+        // a buffer as groups of four (v~ and, in 2D, v; in 3D v in a second
+        // buffer; a column of L each), 4 x 8 transposes turn them into one
+        // vector per quantity, and the velocity, the position step and the
+        // gradient's columns are computed and stored for the 8 at once, with
+        // the arithmetic of gathered() lane by lane. Particle by particle,
+        // the extracts from the sums and the scalar loads and stores took
+        // more than that arithmetic. A pack with a velocity fixity goes
+        // through gathered() particle by particle.
+        constexpr bool kLaneFinish =
+            I == Isa::avx512 && Kinematics && !T::moments && !T::affine && TALUS_HAS_SHUFFLEVECTOR;
+        struct Sums {
+            alignas(64) double pic[32], old[D == 3 ? 32 : 1], grad[D][32];
+        };
+        auto finish_pack = [&](const auto &pack, std::size_t p) __attribute__((always_inline)) {
+#if TALUS_HAS_SHUFFLEVECTOR
+            if constexpr (kLaneFinish) {
+                using V = talus::Lanes<8>::V;
+                Sums q;
+                for (std::size_t j = 0; j < 8; ++j) {
+                    prefetch_material(s, p + j);
+                    R sum;
+                    H dsum[D], osum[D];
+                    pack.lane(j).template gather<Gradient, false>(g, vel, sum, dsum, osum);
+                    const std::size_t at = quad_at(j);
+                    if constexpr (D == 2) {
+                        store_record(q.pic + at, sum);
+                    } else {
+                        H lo, hi;
+                        first_half(sum, lo);
+                        hi = __builtin_shufflevector(sum, sum, 4, 5, 6, 7);
+                        store_record(q.pic + at, lo);
+                        store_record(q.old + at, hi);
+                    }
+                    for (int c = 0; c < D; ++c)
+                        store_record(q.grad[c] + at, dsum[c]);
+                }
+                std::uint32_t fixed = 0;
+                for (std::size_t j = 0; j < 8; ++j)
+                    fixed |= s.fix_mask[p + j];
+                if (fixed != 0) [[unlikely]] {
+                    for (std::size_t j = 0; j < 8; ++j) {
+                        const std::size_t at = quad_at(j);
+                        R sum;
+                        H dsum[D];
+                        const H osum[D]{};
+                        if constexpr (D == 2) {
+                            load_record(q.pic + at, sum);
+                        } else {
+                            H lo, hi;
+                            load_record(q.pic + at, lo);
+                            load_record(q.old + at, hi);
+                            sum = __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 4, 5, 6, 7);
+                        }
+                        for (int c = 0; c < D; ++c)
+                            load_record(q.grad[c] + at, dsum[c]);
+                        gathered(pack.lane(j), p + j, sum, dsum, osum);
+                    }
+                    return;
+                }
+                V pic[4], old[4], grad[D][4];
+                quads_to_lanes(q.pic, pic);
+                if constexpr (D == 3) quads_to_lanes(q.old, old);
+                for (int c = 0; c < D; ++c)
+                    quads_to_lanes(q.grad[c], grad[c]);
+                double *Lp = L_block + (p - block_begin);
+                for (int r = 0; r < D; ++r)
+                    for (int c = 0; c < D; ++c)
+                        store_vector<8>(Lp + static_cast<std::size_t>(3 * r + c) * L_column,
+                                        grad[c][r]);
+                for (int d = 0; d < D; ++d) {
+                    const std::size_t dd = static_cast<std::size_t>(d);
+                    const V vp = pic[d];
+                    V vo;
+                    if constexpr (D == 3)
+                        vo = old[d];
+                    else
+                        vo = pic[vs + dd];
+                    V v, x;
+                    load_vector<8>(&s.v[dd][p], v);
+                    load_vector<8>(&s.x[dd][p], x);
+                    const V vnew = vp + alpha * (v - vo);
+                    store_vector<8>(&s.v[dd][p], vnew);
+                    V step = second ? 0.5 * dt * (vp + vo) : dt * vp;
+                    // The step rounded before it is added, as in gathered()
+                    // (where a fixity may change it): the empty asm keeps
+                    // the compiler from fusing its product into the add.
+                    __asm__("" : "+v"(step));
+                    store_vector<8>(&s.x[dd][p], x + step);
+                }
+                return;
+            }
+#endif
+            for (std::size_t j = 0; j < pack.size(); ++j) {
+                if constexpr (Kinematics) prefetch_material(s, p + j);
+                finish(pack.lane(j), p + j);
+            }
+        };
         auto body = [&](auto near, std::size_t p) __attribute__((always_inline)) {
             St st;
             st.template eval<decltype(near)::value, T::moments>(g, s, p);
@@ -146,10 +249,7 @@ struct G2pMotionKernel {
                 StencilPack<D, S, static_cast<int>(N)> pack;
                 for (; end - p >= N; p += N) {
                     if (pack.template eval_run<T::moments>(g, s, p)) [[likely]] {
-                        for (std::size_t j = 0; j < N; ++j) {
-                            if constexpr (Kinematics) prefetch_material(s, p + j);
-                            finish(pack.lane(j), p + j);
-                        }
+                        finish_pack(pack, p);
                     } else {
                         for (std::size_t j = 0; j < N; ++j)
                             one(p + j);

@@ -297,6 +297,43 @@ template <int N, int C, class V>
         store_lanes<N>(base + c, C, in[c]);
 }
 
+#if TALUS_HAS_SHUFFLEVECTOR
+// Four quantities of 8 points, one vector each (q[i] lane j: point j), as
+// the points' groups of four (q[0..3][j] together: a node's half record),
+// and back: 4 x 8 transposes of eight two-vector shuffles. Point j's four
+// lie at out + quad_at(j), the order the shuffles leave them in. The
+// values only move.
+constexpr std::size_t quad_at(std::size_t j) { return 8 * (j % 4) + 4 * (j / 4); }
+[[gnu::always_inline]] inline void lanes_to_quads(const Lanes<8>::V (&q)[4], double *out) {
+    using V = Lanes<8>::V;
+    const V t0 = __builtin_shufflevector(q[0], q[1], 0, 8, 2, 10, 4, 12, 6, 14);
+    const V t1 = __builtin_shufflevector(q[0], q[1], 1, 9, 3, 11, 5, 13, 7, 15);
+    const V t2 = __builtin_shufflevector(q[2], q[3], 0, 8, 2, 10, 4, 12, 6, 14);
+    const V t3 = __builtin_shufflevector(q[2], q[3], 1, 9, 3, 11, 5, 13, 7, 15);
+    // Points (0, 4), (1, 5), (2, 6), (3, 7).
+    store_vector<8>(out, __builtin_shufflevector(t0, t2, 0, 1, 8, 9, 4, 5, 12, 13));
+    store_vector<8>(out + 8, __builtin_shufflevector(t1, t3, 0, 1, 8, 9, 4, 5, 12, 13));
+    store_vector<8>(out + 16, __builtin_shufflevector(t0, t2, 2, 3, 10, 11, 6, 7, 14, 15));
+    store_vector<8>(out + 24, __builtin_shufflevector(t1, t3, 2, 3, 10, 11, 6, 7, 14, 15));
+}
+[[gnu::always_inline]] inline void quads_to_lanes(const double *in, Lanes<8>::V (&q)[4]) {
+    using V = Lanes<8>::V;
+    V u0, u1, u2, u3;
+    load_vector<8>(in, u0);
+    load_vector<8>(in + 8, u1);
+    load_vector<8>(in + 16, u2);
+    load_vector<8>(in + 24, u3);
+    const V t0 = __builtin_shufflevector(u0, u2, 0, 1, 8, 9, 4, 5, 12, 13);
+    const V t2 = __builtin_shufflevector(u0, u2, 2, 3, 10, 11, 6, 7, 14, 15);
+    const V t1 = __builtin_shufflevector(u1, u3, 0, 1, 8, 9, 4, 5, 12, 13);
+    const V t3 = __builtin_shufflevector(u1, u3, 2, 3, 10, 11, 6, 7, 14, 15);
+    q[0] = __builtin_shufflevector(t0, t1, 0, 8, 2, 10, 4, 12, 6, 14);
+    q[1] = __builtin_shufflevector(t0, t1, 1, 9, 3, 11, 5, 13, 7, 15);
+    q[2] = __builtin_shufflevector(t2, t3, 0, 8, 2, 10, 4, 12, 6, 14);
+    q[3] = __builtin_shufflevector(t2, t3, 1, 9, 3, 11, 5, 13, 7, 15);
+}
+#endif
+
 // Whether any lane of v is positive (v: lanes of ones and zeros, from
 // selects with vector arms). Summed by halves within the vector: a test per
 // lane, or an AND of compare masks, GCC 12 builds from scalar compares one

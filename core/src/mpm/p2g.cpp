@@ -32,24 +32,6 @@ inline constexpr long kPacksAhead = 3;
         __builtin_prefetch(&s.stress[6 * p + k], 0, 3);
 }
 
-#if TALUS_HAS_SHUFFLEVECTOR
-// Four quantities of 8 particles, one vector each (lane j: particle j), as
-// the particles' half records (q[0..3][j] at out + 8 (j % 4) + 4 (j / 4)):
-// a 4 x 8 transpose, eight two-vector shuffles. The values only move.
-[[gnu::always_inline]] inline void records(const Lanes<8>::V (&q)[4], double *out) {
-    using V = Lanes<8>::V;
-    const V t0 = __builtin_shufflevector(q[0], q[1], 0, 8, 2, 10, 4, 12, 6, 14);
-    const V t1 = __builtin_shufflevector(q[0], q[1], 1, 9, 3, 11, 5, 13, 7, 15);
-    const V t2 = __builtin_shufflevector(q[2], q[3], 0, 8, 2, 10, 4, 12, 6, 14);
-    const V t3 = __builtin_shufflevector(q[2], q[3], 1, 9, 3, 11, 5, 13, 7, 15);
-    // Particles (0, 4), (1, 5), (2, 6), (3, 7).
-    store_vector<8>(out, __builtin_shufflevector(t0, t2, 0, 1, 8, 9, 4, 5, 12, 13));
-    store_vector<8>(out + 8, __builtin_shufflevector(t1, t3, 0, 1, 8, 9, 4, 5, 12, 13));
-    store_vector<8>(out + 16, __builtin_shufflevector(t0, t2, 2, 3, 10, 11, 6, 7, 14, 15));
-    store_vector<8>(out + 24, __builtin_shufflevector(t1, t3, 2, 3, 10, 11, 6, 7, 14, 15));
-}
-#endif
-
 // The particles [begin, end) of set s (indices), with the node-record
 // arithmetic in L (stencil.hpp).
 template <class L, Isa I, int D, class S, bool Mass, bool Momentum, bool Affine, bool Forces>
@@ -141,15 +123,13 @@ template <class L, Isa I, int D, class S, bool Mass, bool Momentum, bool Affine,
     // The records of a pack of 8 consecutive particles from p0 (AVX-512):
     // each quantity for the 8 in the lanes of one vector (the same
     // products as scatter's, lane by lane), then turned into the particles'
-    // half records by 4 x 8 transposes. Particle by particle, the scalar
+    // half records by 4 x 8 transposes (lanes_to_quads). Particle by particle, the scalar
     // loads and the lane inserts that build the records took more of P2G
     // than their arithmetic. False, with nothing made, if a particle of the
     // pack has a load of its own (Loads::particle_force, per particle).
     struct Made {
         alignas(64) double lo[32], hi[32], grad[D][32];
     } made;
-    // Where particle j's half record is in a transpose's output (records).
-    auto record_at = [](std::size_t j) { return 8 * (j % 4) + 4 * (j / 4); };
     auto pack_records = [&](std::size_t p0) __attribute__((always_inline)) {
 #if TALUS_HAS_SHUFFLEVECTOR
         if constexpr (I == Isa::avx512) {
@@ -169,7 +149,7 @@ template <class L, Isa I, int D, class S, bool Mass, bool Momentum, bool Affine,
                     load_vector<8>(&s.v[static_cast<std::size_t>(d)][p0], v);
                     lo[node::kMomentum + static_cast<std::size_t>(d)] = m * v;
                 }
-            records(lo, made.lo);
+            lanes_to_quads(lo, made.lo);
             if constexpr (Forces) {
                 V J, vol0, sg[6];
                 load_vector<8>(&s.J[p0], J);
@@ -179,20 +159,20 @@ template <class L, Isa I, int D, class S, bool Mass, bool Momentum, bool Affine,
                 V hi[4] = {zero, zero, zero, zero};
                 for (int d = 0; d < D; ++d)
                     hi[f + static_cast<std::size_t>(d)] = zero + m * grav[d];
-                records(hi, made.hi);
+                lanes_to_quads(hi, made.hi);
                 // Voigt (xx, yy, zz, xy, yz, zx), as in scatter.
                 const V xx = nV * sg[0], yy = nV * sg[1], xy = nV * sg[3];
                 if constexpr (D == 2) {
                     const V g0[4] = {xx, xy, zero, zero}, g1[4] = {xy, yy, zero, zero};
-                    records(g0, made.grad[0]);
-                    records(g1, made.grad[1]);
+                    lanes_to_quads(g0, made.grad[0]);
+                    lanes_to_quads(g1, made.grad[1]);
                 } else {
                     const V zz = nV * sg[2], yz = nV * sg[4], zx = nV * sg[5];
                     const V g0[4] = {xx, xy, zx, zero}, g1[4] = {xy, yy, yz, zero},
                             g2[4] = {zx, yz, zz, zero};
-                    records(g0, made.grad[0]);
-                    records(g1, made.grad[1]);
-                    records(g2, made.grad[2]);
+                    lanes_to_quads(g0, made.grad[0]);
+                    lanes_to_quads(g1, made.grad[1]);
+                    lanes_to_quads(g2, made.grad[2]);
                 }
             } else {
                 for (std::size_t i = 0; i < 32; ++i)
@@ -223,7 +203,7 @@ template <class L, Isa I, int D, class S, bool Mass, bool Momentum, bool Affine,
                 if constexpr (I == Isa::avx512 && !Affine && TALUS_HAS_SHUFFLEVECTOR) {
                     if (run && pack_records(k[0])) {
                         for (int j = 0; j < N; ++j) {
-                            const std::size_t at = record_at(static_cast<std::size_t>(j));
+                            const std::size_t at = quad_at(static_cast<std::size_t>(j));
                             H a_lo, a_hi, grad[D];
                             load_record(made.lo + at, a_lo);
                             load_record(made.hi + at, a_hi);

@@ -413,6 +413,7 @@ struct StencilPack {
     int base[D][N];
     double w[D][W][N], dw[D][W][N], off[D][W][N], w_off[D][W][N];
     double dinv[D]; // as Stencil's, the same for every particle away from the faces
+    static constexpr std::size_t size() { return N; }
 
     struct Lane : StencilSums<Lane, D, W> {
         const StencilPack *pk;
