@@ -71,10 +71,9 @@ struct G2pMotionKernel {
         double *L_block = Kinematics ? args.blocks->buffer() : nullptr;
         const std::size_t L_column = Kinematics ? args.blocks->block_size() : 0;
         std::size_t block_begin = args.begin;
-        // One particle, through its stencil st (a Stencil or a lane of a
-        // StencilPack).
-        // One particle from its sums over the nodes of the records (v, v~):
-        // by the weight, the gradient and the weighted offset.
+        // One particle (st: a Stencil or a lane of a StencilPack) from its
+        // sums over the nodes of the records (v, v~): by the weight, the
+        // gradient and the weighted offset.
         auto gathered = [&](const auto &st, std::size_t p, const R &sum, const H(&dsum)[D],
                             const H(&osum)[D]) __attribute__((always_inline)) {
             double vpic[D], vold[D], L[D][D], B[D][D], step[D];
@@ -120,6 +119,7 @@ struct G2pMotionKernel {
                     s.dx[dd][p] = step[d];
             }
         };
+        // One particle: its sums, then the rest.
         auto finish = [&](const auto &st, std::size_t p) __attribute__((always_inline)) {
             R sum;
             H dsum[D], osum[D];

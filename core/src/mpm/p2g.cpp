@@ -49,16 +49,21 @@ template <class L, Isa I, int D, class S, bool Mass, bool Momentum, bool Affine,
     static_assert(node::kMass < half && node::kMomentum + 3 <= half && node::kForce == half,
                   "mass and momentum fill a record's first half, the force its second");
     constexpr std::size_t f = node::kForce - half; // the force's first lane in the second half
-    // The scatter of records made already (pack_records), and the fixity.
-    auto scatter_made = [&](const auto &st, std::size_t p, const H &a_lo, const H &a_hi,
-                            const H(&grad)[D]) __attribute__((always_inline)) {
-        const H offs[D]{};
-        st.template scatter<Forces, Forces, Affine>(g, acc, a_lo, a_hi, grad, offs);
+    // The nodes a fixed particle reaches carry its fixity
+    // (Boundary::apply): a constraint the grid sees.
+    auto fixity = [&](const auto &st, std::size_t p) __attribute__((always_inline)) {
         if (const std::uint32_t fixed = Mass ? s.fix_mask[p] : 0u) [[unlikely]]
             st.for_each_reached_node(g, [&](std::size_t slot) {
                 double &bits = acc[node::kRecord * slot + node::kFixity];
                 bits = static_cast<double>(static_cast<std::uint32_t>(bits) | fixed);
             });
+    };
+    // The scatter of records made already (pack_records).
+    auto scatter_made = [&](const auto &st, std::size_t p, const H &a_lo, const H &a_hi,
+                            const H(&grad)[D]) __attribute__((always_inline)) {
+        const H offs[D]{};
+        st.template scatter<Forces, Forces, Affine>(g, acc, a_lo, a_hi, grad, offs);
+        fixity(st, p);
     };
     auto scatter = [&](const auto &st, std::size_t p) __attribute__((always_inline)) {
         const double m = s.mass[p];
@@ -98,13 +103,7 @@ template <class L, Isa I, int D, class S, bool Mass, bool Momentum, bool Affine,
                 set_lane(a_hi, f + static_cast<std::size_t>(d), fext[d] + m * grav[d]);
         }
         st.template scatter<Forces, Forces, Affine>(g, acc, a_lo, a_hi, grad, offs);
-        // The nodes a fixed particle reaches carry its fixity
-        // (Boundary::apply): a constraint the grid sees.
-        if (const std::uint32_t fixed = Mass ? s.fix_mask[p] : 0u) [[unlikely]]
-            st.for_each_reached_node(g, [&](std::size_t slot) {
-                double &bits = acc[node::kRecord * slot + node::kFixity];
-                bits = static_cast<double>(static_cast<std::uint32_t>(bits) | fixed);
-            });
+        fixity(st, p);
     };
     auto body = [&](auto near, std::size_t p) __attribute__((always_inline)) {
         St st;
@@ -121,12 +120,12 @@ template <class L, Isa I, int D, class S, bool Mass, bool Momentum, bool Affine,
             OutOfLine<I>::call(near_face, p);
     };
     // The records of a pack of 8 consecutive particles from p0 (AVX-512):
-    // each quantity for the 8 in the lanes of one vector (the same
-    // products as scatter's, lane by lane), then turned into the particles'
-    // half records by 4 x 8 transposes (lanes_to_quads). Particle by particle, the scalar
-    // loads and the lane inserts that build the records took more of P2G
-    // than their arithmetic. False, with nothing made, if a particle of the
-    // pack has a load of its own (Loads::particle_force, per particle).
+    // each quantity for the 8 in the lanes of one vector (the same products
+    // as scatter's, lane by lane), then turned into the particles' half
+    // records by 4 x 8 transposes (lanes_to_quads). Particle by particle,
+    // the scalar loads and the lane inserts that build the records took
+    // more of P2G than their arithmetic. False, with nothing made, if a
+    // particle of the pack has a load of its own (Loads::particle_force).
     struct Made {
         alignas(64) double lo[32], hi[32], grad[D][32];
     } made;
