@@ -144,6 +144,8 @@ struct G2pMotionKernel {
         auto finish_pack = [&](const auto &pack, std::size_t p) __attribute__((always_inline)) {
 #if TALUS_HAS_SHUFFLEVECTOR
             if constexpr (kLaneFinish) {
+                static_assert(std::decay_t<decltype(pack)>::size() == 8,
+                              "a pack is one 8-lane vector a quantity");
                 using V = talus::Lanes<8>::V;
                 Sums q;
                 for (std::size_t j = 0; j < 8; ++j) {

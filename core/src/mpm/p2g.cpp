@@ -132,6 +132,7 @@ template <class L, Isa I, int D, class S, bool Mass, bool Momentum, bool Affine,
     auto pack_records = [&](std::size_t p0) __attribute__((always_inline)) {
 #if TALUS_HAS_SHUFFLEVECTOR
         if constexpr (I == Isa::avx512) {
+            static_assert(kPointLanes<I> == 8, "a pack is one 8-lane vector a quantity");
             using V = Lanes<8>::V;
             std::uint32_t loaded = 0;
             if constexpr (Forces)
@@ -173,12 +174,6 @@ template <class L, Isa I, int D, class S, bool Mass, bool Momentum, bool Affine,
                     lanes_to_quads(g1, made.grad[1]);
                     lanes_to_quads(g2, made.grad[2]);
                 }
-            } else {
-                for (std::size_t i = 0; i < 32; ++i)
-                    made.hi[i] = 0.0;
-                for (int d = 0; d < D; ++d)
-                    for (std::size_t i = 0; i < 32; ++i)
-                        made.grad[d][i] = 0.0;
             }
             return true;
         }
@@ -203,11 +198,14 @@ template <class L, Isa I, int D, class S, bool Mass, bool Momentum, bool Affine,
                     if (run && pack_records(k[0])) {
                         for (int j = 0; j < N; ++j) {
                             const std::size_t at = quad_at(static_cast<std::size_t>(j));
-                            H a_lo, a_hi, grad[D];
+                            // Without forces the scatter reads a_lo alone.
+                            H a_lo, a_hi{}, grad[D]{};
                             load_record(made.lo + at, a_lo);
-                            load_record(made.hi + at, a_hi);
-                            for (int d = 0; d < D; ++d)
-                                load_record(made.grad[d] + at, grad[d]);
+                            if constexpr (Forces) {
+                                load_record(made.hi + at, a_hi);
+                                for (int d = 0; d < D; ++d)
+                                    load_record(made.grad[d] + at, grad[d]);
+                            }
                             scatter_made(pack.lane(static_cast<std::size_t>(j)), k[j], a_lo, a_hi,
                                          grad);
                         }

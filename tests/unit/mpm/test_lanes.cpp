@@ -59,3 +59,35 @@ TEST(Lanes, PointsToLanesAndBackAreTransposes) {
     check<8, 6>();
     check<8, 9>();
 }
+
+#if TALUS_HAS_SHUFFLEVECTOR
+// The 4 x 8 transposes of P2G's records and G2P's sums (lanes_to_quads,
+// quads_to_lanes): against their definition, quantity i of point j <->
+// out[quad_at(j) + i], with quad_at placing the 8 points' groups of four
+// in disjoint places that fill the 32 doubles.
+TEST(Lanes, LanesToQuadsAndBackAreTransposes) {
+    using V = talus::Lanes<8>::V;
+    const std::vector<double> in = points(8, 4); // point j's quantity i at 4 j + i
+    V q[4];
+    for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 8; ++j)
+            std::memcpy(reinterpret_cast<double *>(&q[i]) + j,
+                        &in[static_cast<std::size_t>(4 * j + i)], 8);
+    std::vector<double> out(32, 7.0);
+    talus::lanes_to_quads(q, out.data());
+    std::vector<int> hits(32, 0);
+    for (std::size_t j = 0; j < 8; ++j)
+        for (std::size_t i = 0; i < 4; ++i) {
+            const std::size_t at = talus::quad_at(j) + i;
+            ASSERT_LT(at, 32u);
+            ++hits[at];
+            EXPECT_EQ(0, std::memcmp(&out[at], &in[4 * j + i], 8))
+                << "quantity " << i << " of point " << j;
+        }
+    for (int h : hits)
+        EXPECT_EQ(h, 1); // every place once: the 8 groups fill the 32
+    V back[4];
+    talus::quads_to_lanes(out.data(), back);
+    EXPECT_EQ(0, std::memcmp(back, q, sizeof q));
+}
+#endif
