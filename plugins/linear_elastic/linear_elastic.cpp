@@ -7,6 +7,7 @@
 // strains use neo_hookean.
 //
 // This file is also the template for a new model: copy the folder, rename.
+#include <talus/sdk/hooke.hpp>
 #include <talus/sdk/material.hpp>
 #include <talus/sdk/wave_speed.hpp>
 
@@ -64,20 +65,22 @@ struct LinearElastic {
     }
 
     void update(const talus::sdk::PointIn &in, talus::sdk::PointOut &out) const {
-        hooke(in.stress.data(), in.strain_increment.data(), out.stress.data());
+        talus::sdk::isotropic_hooke(lambda_, shear_, in.stress.data(), in.strain_increment.data(),
+                                    out.stress.data(), 1);
         if (out.tangent) *out.tangent = D_;
     }
 
     // The whole update over a chunk of the batch (the SDK's quick pass),
     // so every update call takes this path: update() and wave_speed() are
     // the per-point forms the SDK's contract asks for, with the same
-    // arithmetic (hooke(), sqrt(M / rho)). Without it the SDK set up each
+    // arithmetic (isotropic_hooke, sqrt(M / rho)). Without it the SDK set up each
     // point for update() and computed its wave speed alone, where the
     // division and the square root wait on each other: 10 % of a 2D step
     // on a core with slow ones (docs/performance.md).
     void quick_update(const talus::sdk::Points &p) const {
+        talus::sdk::isotropic_hooke(lambda_, shear_, p.stress_start, p.strain_increment,
+                                    p.stress_end, p.n);
         for (std::size_t k = 0; k < p.n; ++k) {
-            hooke(p.stress_start + 6 * k, p.strain_increment + 6 * k, p.stress_end + 6 * k);
             if (p.tangent) Eigen::Map<Mat6>(p.tangent + 36 * k) = D_; // symmetric
             p.done[k] = 1;
         }
@@ -89,17 +92,6 @@ struct LinearElastic {
     }
 
   private:
-    // sigma_end = sigma_start + lambda tr(de) I + 2 G de (tensor shear:
-    // G times the engineering shear strain). s1 may be s0 (an in-place
-    // update: each component is read before it is written).
-    void hooke(const double *s0, const double *de, double *s1) const {
-        const double lam_tr = lambda_ * (de[0] + de[1] + de[2]);
-        for (int i = 0; i < 3; ++i) {
-            s1[i] = s0[i] + (lam_tr + 2.0 * shear_ * de[i]);
-            s1[i + 3] = s0[i + 3] + shear_ * de[i + 3];
-        }
-    }
-
     double shear_ = 0.0;
     double lambda_ = 0.0;
     double p_wave_modulus_ = 0.0;

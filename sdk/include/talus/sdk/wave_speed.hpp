@@ -26,28 +26,11 @@
 #include <emmintrin.h>
 #endif
 
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
-#define TALUS_SDK_HAS_QUAD 1
-#include <immintrin.h>
-#endif
+#include "detail/avx.hpp"
 
 namespace talus::sdk {
 
 namespace detail {
-
-// Whether this processor runs the four-lane form (read once). A test may
-// turn it off to compare the forms.
-inline bool &quad_enabled() {
-#if defined(TALUS_SDK_HAS_QUAD)
-    static bool on = [] {
-        __builtin_cpu_init();
-        return __builtin_cpu_supports("avx") != 0;
-    }();
-#else
-    static bool on = false;
-#endif
-    return on;
-}
 
 #if defined(TALUS_SDK_HAS_QUAD)
 // Points [0, n - n % 4), four a vector; returns how many it did.
