@@ -744,11 +744,16 @@ struct Descriptors {
                         // past the ones left): where elastic and plastic
                         // points mix, the branch was mispredicted at
                         // every change.
+                        // A chunk the quick pass finished whole (every
+                        // point of an elastic model) skips the listing: the
+                        // library's search for a zero byte reads the flags
+                        // a vector at a time.
                         std::size_t n_rest = 0;
-                        for (std::size_t k = 0; k < m; ++k) {
-                            rest[n_rest] = static_cast<std::uint32_t>(c0 + k);
-                            n_rest += done[k] == 0 ? 1u : 0u;
-                        }
+                        if (std::memchr(done.data(), 0, m) != nullptr)
+                            for (std::size_t k = 0; k < m; ++k) {
+                                rest[n_rest] = static_cast<std::uint32_t>(c0 + k);
+                                n_rest += done[k] == 0 ? 1u : 0u;
+                            }
                         std::size_t j = 0;
                         if constexpr (has_group_update)
                             while (j + 1 < n_rest) {
