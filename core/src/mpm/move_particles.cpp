@@ -206,7 +206,7 @@ end_packs(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &geo, c
     const int axis = order.axis();
     const V last_slab = V{} + static_cast<double>(order.n_slabs() - 1);
     const double *c = s.c.data();
-    double speed_max = r.speed;
+    V speeds = V{} + r.speed;
     V depth = V{} + r.depth;
     V outside{}, held{}, moved{};
     // The arms of every select are vectors: with a scalar arm GCC 12
@@ -274,14 +274,18 @@ end_packs(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &geo, c
         // The square roots as one vector instruction (this file is compiled
         // without errno for sqrt, which kept them one by one: 8 scalar
         // roots a pack, 2 % of a 2D step); correctly rounded either way.
-        // The maximum as std::max: a NaN never enters. (Skipping the packs
-        // that cannot pass the maximum so far was slower: in a block of
-        // nearly equal wave speeds many can.)
-        double root[N];
+        // The maximum lane by lane as std::max takes it (a NaN never
+        // enters), the lanes' maxima taken after the loop: one dependent
+        // select a pack instead of N. The speeds are positive or +0
+        // (c >= 0, a root >= +0), so the order of the maxima cannot change
+        // the result.
+        V root;
         for (int i = 0; i < N; ++i)
             root[i] = std::sqrt(v2[i]);
-        for (int i = 0; i < N; ++i)
-            speed_max = std::max(speed_max, c[p + static_cast<std::size_t>(i)] + root[i]);
+        V cv;
+        load_vector<N>(c + p, cv);
+        const V speed = cv + root;
+        speeds = speeds < speed ? speed : speeds;
         I32 old_slab;
         std::memcpy(&old_slab, mark.slab + p, sizeof old_slab);
         moved += sl == __builtin_convertvector(old_slab, V) ? zero : one;
@@ -293,7 +297,8 @@ end_packs(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &geo, c
         const I32 cell = shifted ^ static_cast<std::int32_t>(0x80000000u);
         std::memcpy(mark.cell + p, &cell, sizeof cell);
     }
-    r.speed = speed_max;
+    for (int i = 0; i < N; ++i)
+        r.speed = std::max(r.speed, speeds[i]);
     for (int d = 0; d < D; ++d)
         for (int i = 0; i < N; ++i) {
             const std::size_t dd = static_cast<std::size_t>(d);
