@@ -6,9 +6,10 @@
 // and nothing written past the chunk.
 #include <talus/sdk/hooke.hpp>
 
+#include "forms.hpp"
+
 #include <gtest/gtest.h>
 
-#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -17,19 +18,12 @@
 
 namespace {
 
-std::uint64_t bits(double x) { return std::bit_cast<std::uint64_t>(x); }
+using talus::sdk::test::bits;
 
-// Runs f with the AVX form as the processor allows it, then without it.
+// Each test body with both forms (forms.hpp).
 template <class F>
 void with_each_form(F &&f) {
-    bool &quad = talus::sdk::detail::quad_enabled();
-    const bool saved = quad;
-    for (const bool on : {saved, false}) {
-        quad = on;
-        SCOPED_TRACE(on ? "AVX pairs" : "point by point");
-        f();
-    }
-    quad = saved;
+    talus::sdk::test::with_each_form("AVX pairs", "point by point", f);
 }
 
 // The law as a model author writes it for one point.

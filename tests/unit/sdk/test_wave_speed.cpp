@@ -7,9 +7,10 @@
 // std::sqrt (NaN, never a silent number).
 #include <talus/sdk/wave_speed.hpp>
 
+#include "forms.hpp"
+
 #include <gtest/gtest.h>
 
-#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -18,21 +19,12 @@
 
 namespace {
 
-// The bits of x: NaN compares equal to a NaN of the same payload.
-std::uint64_t bits(double x) { return std::bit_cast<std::uint64_t>(x); }
+using talus::sdk::test::bits;
 
-// Runs f once with the four-lane form as the processor allows it, and once
-// without it (the pairs alone), restoring the setting.
+// Each test body with both forms (forms.hpp).
 template <class F>
 void with_each_form(F &&f) {
-    bool &quad = talus::sdk::detail::quad_enabled();
-    const bool saved = quad;
-    for (const bool on : {saved, false}) {
-        quad = on;
-        SCOPED_TRACE(on ? "four lanes" : "pairs");
-        f();
-    }
-    quad = saved;
+    talus::sdk::test::with_each_form("four lanes", "pairs", f);
 }
 
 TEST(WaveSpeeds, EveryPointHasTheScalarFormulasBits) {
