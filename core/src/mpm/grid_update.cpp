@@ -10,10 +10,11 @@ using node::kRecord;
 
 namespace {
 
-template <bool Update, DampingKind Damping = DampingKind::none>
-void velocities(Grid &grid, const Boundary &bc, double t, double dt, double alpha = 0.0) {
+// D a constant: the node's component loop unrolled (with the dimension
+// read at run time it stayed a loop per node).
+template <int D, bool Update, DampingKind Damping>
+void velocities_in(Grid &grid, const Boundary &bc, double t, double dt, double alpha) {
     double *a = grid.acc.data(), *v = grid.vel.data();
-    const int D = grid.geo.dim;
     const std::size_t vs = node::velocity(D), ve = node::kEndVelocity;
     // v = p / m everywhere and, when updating, v~ = v + dt f / m in the same
     // pass; the constrained nodes are then redone in order (conditions on v,
@@ -49,6 +50,14 @@ void velocities(Grid &grid, const Boundary &bc, double t, double dt, double alph
                 v[kRecord * i + vs + d] + dt * a[kRecord * i + node::kForce + d] * inv;
     });
     bc.apply(grid, v, ve, a, t + dt);
+}
+
+template <bool Update, DampingKind Damping = DampingKind::none>
+void velocities(Grid &grid, const Boundary &bc, double t, double dt, double alpha = 0.0) {
+    if (grid.geo.dim == 2)
+        velocities_in<2, Update, Damping>(grid, bc, t, dt, alpha);
+    else
+        velocities_in<3, Update, Damping>(grid, bc, t, dt, alpha);
 }
 
 } // namespace
