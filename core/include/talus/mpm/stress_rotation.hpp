@@ -64,8 +64,14 @@ template <bool AnyAxis, class T, class Lm>
     for (int m = 0; m < 6; ++m) {
         const int i = row[m], j = col[m];
         const T general = QS[i][0] * Q[j][0] + QS[i][1] * Q[j][1] + QS[i][2] * Q[j][2];
-        const T turned = about_z ? r[m] : general;
-        sig[m] = still ? sig[m] : turned;
+        // No spin is a spin about z (a1 = a2 = 0), so the plane case's
+        // select goes first and the general one last. The other nesting
+        // (general or plane, then still or not) GCC 12 built in the
+        // vector kernels as a branch per lane that computed `general` in
+        // scalar code where the lane needed it: 10-15 ns a 3D point, a
+        // third of the material block (docs/performance.md).
+        const T kept = still ? sig[m] : r[m];
+        sig[m] = about_z ? kept : general;
     }
 }
 
