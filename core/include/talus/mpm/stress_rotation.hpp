@@ -65,7 +65,10 @@ template <bool AnyAxis, class T, class Lm>
         const int i = row[m], j = col[m];
         const T general = QS[i][0] * Q[j][0] + QS[i][1] * Q[j][1] + QS[i][2] * Q[j][2];
         // No spin is a spin about z (a1 = a2 = 0), so the plane case's
-        // select goes first and the general one last. The other nesting
+        // select goes first and the general one last. (Not quite the same
+        // selection when |a|^2 underflows to 0 with a1 or a2 nonzero, below
+        // about 1e-154: the general rotation, exact to round-off, is then
+        // applied where the stress was kept.) The other nesting
         // (general or plane, then still or not) GCC 12 built in the
         // vector kernels as a branch per lane that computed `general` in
         // scalar code where the lane needed it: 10-15 ns a 3D point, a
