@@ -40,6 +40,14 @@
 #include <array>
 #include <cmath>
 
+// Functions written once over a lane type (see "The validity tests
+// below") are always inlined.
+#if defined(__GNUC__) || defined(__clang__)
+#define TALUS_MC_LANE_INLINE [[gnu::always_inline]] inline
+#else
+#define TALUS_MC_LANE_INLINE inline
+#endif
+
 namespace talus_mc {
 
 using V3 = Eigen::Vector3d;
@@ -78,10 +86,18 @@ struct Elastic {
     double shear = 0.0;
     double lambda = 0.0;
     V3 apply(const V3 &x) const { return lambda * x.sum() * V3::Ones() + 2.0 * shear * x; }
-    // D^-1 x = x / 2G - lambda tr(x) / (2G (3 lambda + 2G)) 1.
+    // D^-1 x = x / 2G - lambda tr(x) / (2G (3 lambda + 2G)) 1, for one
+    // point (double) or a vector of them, in one order of operations.
+    template <class T>
+    TALUS_MC_LANE_INLINE void solve(const T x[3], T out[3]) const {
+        const T v = lambda * ((x[0] + x[1]) + x[2]) / (2.0 * shear * (3.0 * lambda + 2.0 * shear));
+        for (int i = 0; i < 3; ++i)
+            out[i] = x[i] / (2.0 * shear) - v;
+    }
     V3 solve(const V3 &x) const {
-        return x / (2.0 * shear) -
-               lambda * x.sum() / (2.0 * shear * (3.0 * lambda + 2.0 * shear)) * V3::Ones();
+        V3 out;
+        solve(x.data(), out.data());
+        return out;
     }
     M3 matrix() const { return lambda * M3::Ones() + 2.0 * shear * M3::Identity(); }
 };
@@ -118,9 +134,30 @@ struct Planes {
     }
 };
 
+// The validity tests below are written once over a lane type T: a double
+// (one point), or a GCC vector of doubles (one point a lane, with the same
+// operations in the same order, so that a point's bits do not depend on
+// which form tested it: plane_lanes.hpp). Comparisons give a bool or a lane
+// mask; &, | and flip() combine both. Results are out-parameters and the
+// functions always inlined (TALUS_MC_LANE_INLINE), so that no vector passes
+// by value through code compiled for the baseline target.
+
+// m's complement in place: a bool's !, every bit of a lane mask flipped
+// (GCC lowered ! on a vector lane by lane, in scalar code).
+template <class M>
+TALUS_MC_LANE_INLINE void flip(M &m) {
+    m = m ^ (m == m);
+}
+
 // Shear yield function of ordered principal stresses, in the form above.
+template <class T>
+TALUS_MC_LANE_INLINE void shear_yield(const T s[3], const Strength &st, T &f) {
+    f = (1.0 + st.sin_phi) * s[0] - (1.0 - st.sin_phi) * s[2] - 2.0 * st.cohesion * st.cos_phi;
+}
 inline double shear_yield(const V3 &s, const Strength &st) {
-    return (1.0 + st.sin_phi) * s[0] - (1.0 - st.sin_phi) * s[2] - 2.0 * st.cohesion * st.cos_phi;
+    double f;
+    shear_yield(s.data(), st, f);
+    return f;
 }
 
 // A candidate: the planes that hold as equalities and the flow directions
@@ -178,15 +215,52 @@ struct Return {
 // cut-off T is not part of the scale: a large T (a cut-off in effect
 // switched off) would blur the yield point; where T matters the stress is
 // of its size anyway.
+// (A maximum is exact: any order of comparisons gives the same value.)
+template <class T>
+TALUS_MC_LANE_INLINE void stress_tolerance(const T t[3], const Strength &st, T &tol) {
+    T m = t[0] < 0.0 ? -t[0] : t[0];
+    for (int i = 1; i < 3; ++i) {
+        const T a = t[i] < 0.0 ? -t[i] : t[i];
+        m = m < a ? a : m;
+    }
+    m = m < st.cohesion ? T{} + st.cohesion : m;
+    tol = 1e-10 * (m < 1e-300 ? T{} + 1e-300 : m);
+}
 inline double stress_tolerance(const V3 &trial, const Strength &st) {
-    return 1e-10 * std::max({trial.cwiseAbs().maxCoeff(), st.cohesion, 1e-300});
+    double tol;
+    stress_tolerance(trial.data(), st, tol);
+    return tol;
 }
 
 // Whether the ordered principal stress s lies inside the yield surface.
+template <class T, class M>
+TALUS_MC_LANE_INLINE void admissible(const T s[3], const Strength &st, const T &tol, M &in) {
+    T f;
+    shear_yield(s, st, f);
+    in = f > tol;
+    if (st.tension_active) in = in | (s[0] - st.tension > tol);
+    flip(in);
+}
 inline bool admissible(const V3 &s, const Strength &st, double tol) {
-    if (shear_yield(s, st) > tol) return false;
-    if (st.tension_active && s[0] - st.tension > tol) return false;
-    return true;
+    bool in = false;
+    admissible(s.data(), st, tol, in);
+    return in;
+}
+
+// Within the validity tolerance of the shear plane or the cut-off: a
+// stress left there without plastic flow keeps its yield mode.
+template <class T, class M>
+TALUS_MC_LANE_INLINE void on_surface(const T s[3], const Strength &st, const T &tol, M &on) {
+    T f;
+    shear_yield(s, st, f);
+    on = f > -tol;
+    if (st.tension_active) on = on | (s[0] - st.tension > -tol);
+}
+inline bool on_surface(const V3 &s, const Strength &st) {
+    const double tol = stress_tolerance(s, st);
+    bool on = false;
+    on_surface(s.data(), st, tol, on);
+    return on;
 }
 
 // The linear system of one candidate: M = A D B (the planes' normals A, the
@@ -276,10 +350,45 @@ struct Systems {
     }
 };
 
+// The return onto one plane (a candidate with n = 1: the shear plane, the
+// cut-off plane) and its tests: the multiplier non-negative, the principal
+// order kept, no plane violated. `s`: the returned stress, `valid` the
+// verdict (a bool or a lane mask). sys must be solvable.
+template <class T, class M>
+TALUS_MC_LANE_INLINE void plane_return(const Candidate &c, const System &sys, const T t[3],
+                                       const Planes &pl, const Strength &st, const T &tol, T s[3],
+                                       M &valid) {
+    const std::size_t plane = static_cast<std::size_t>(c.planes[0]);
+    const V3 &a = pl.a[plane];
+    const T rhs = ((a[0] * t[0] + a[1] * t[1]) + a[2] * t[2]) - pl.k[plane];
+    const T dl = sys.Minv(0, 0) * rhs;
+    for (int i = 0; i < 3; ++i)
+        s[i] = t[i] - sys.DB(i, 0) * dl;
+    // Multipliers are strain-like; tested relative to the largest one.
+    const T mag = dl < 0.0 ? -dl : dl;
+    const T lscale = mag < 1e-300 ? T{} + 1e-300 : mag;
+    M in;
+    admissible(s, st, tol, in);
+    M bad = (dl < -1e-10 * lscale) | (s[0] - s[1] < -tol) | (s[1] - s[2] < -tol);
+    flip(bad);
+    valid = bad & in;
+}
+
 // Solves one candidate and tests it: multipliers non-negative, principal
 // order kept, no plane violated.
 inline bool try_candidate(const Candidate &c, const System &sys, const V3 &trial, const Planes &pl,
                           const Strength &st, double tol, Return &out) {
+    if (c.n == 1) {
+        if (!sys.solvable) return false;
+        V3 s;
+        bool valid = false;
+        plane_return(c, sys, trial.data(), pl, st, tol, s.data(), valid);
+        if (!valid) return false;
+        out.stress = s;
+        out.P = sys.P;
+        out.mode = c.mode;
+        return true;
+    }
     V3 dl;
     Return r;
     if (!solve_candidate(c, sys, trial, pl, dl, r)) return false;
@@ -372,9 +481,17 @@ inline Return return_map(const V3 &trial, const Strength &st, const Elastic &el,
 
 // Equivalent plastic deviatoric strain of a principal plastic strain
 // increment x: sqrt(2/3 dev(x) : dev(x)).
+// Its square, for the lanes.
+template <class T>
+TALUS_MC_LANE_INLINE void deviatoric_measure_squared(const T x[3], T &out) {
+    const T m = ((x[0] + x[1]) + x[2]) / 3.0;
+    const T d0 = x[0] - m, d1 = x[1] - m, d2 = x[2] - m;
+    out = 2.0 / 3.0 * ((d0 * d0 + d1 * d1) + d2 * d2);
+}
 inline double deviatoric_measure(const V3 &x) {
-    const V3 d = x - V3::Constant(x.sum() / 3.0);
-    return std::sqrt(2.0 / 3.0 * d.squaredNorm());
+    double sq;
+    deviatoric_measure_squared(x.data(), sq);
+    return std::sqrt(sq);
 }
 
 } // namespace talus_mc

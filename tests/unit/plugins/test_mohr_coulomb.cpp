@@ -6,7 +6,10 @@
 #include "batches.hpp"
 #include "test_paths.hpp"
 
+#include "mohr_coulomb/plane_lanes.hpp"
 #include "mohr_coulomb/principal_return.hpp"
+
+#include <talus/sdk/spectral.hpp>
 
 #include <talus/error.hpp>
 #include <talus/material/plugin_loader.hpp>
@@ -287,6 +290,109 @@ TEST(MohrCoulomb, PeerVectorsTrialInvariantsYieldValuesAndReturnOnTheSurface) {
             EXPECT_NEAR(ft, 0.0, 1e-9 * scale) << "tension";
         }
     }
+}
+
+// The plane pass's lanes (plane_lanes.hpp) against the full return
+// (return_map), and the four-lane vector form against the one-lane form
+// bit for bit: at random ordered trial stresses and directions, for the
+// strengths below, each lane is admissible (verdict 1: the return_map is
+// elastic), returned onto the shear or the cut-off plane (2: return_map's
+// stress, composed as SymmetricEigen does, and its plastic strain), or left
+// to the full update (0: return_map goes elsewhere, or the hint's order
+// would choose otherwise).
+TEST(MohrCoulomb, PlaneLanesAreTheFullReturnOnTheirPlanes) {
+    std::mt19937_64 rng(11);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    talus_mc::Elastic el;
+    el.shear = 1e7 / 2.6;
+    el.lambda = 1e7 * 0.3 / (1.3 * 0.4);
+    struct Set {
+        double phi, psi, c, T;
+    };
+    const Set sets[] = {{30, 0, 2000, 0}, {30, 10, 1e4, 5e3}, {35, 0, 0, 0}, {20, 5, 2e4, 1e9}};
+    std::map<int, int> verdicts;
+    for (const Set &set : sets) {
+        const talus_mc::Strength st = strength(set.phi, set.psi, set.c, set.T);
+        const talus_mc::Systems systems(st, el);
+        for (int round = 0; round < 500; ++round) {
+            talus_mc::PlaneLanes in;
+            for (std::size_t lane = 0; lane < in.kLanes; ++lane) {
+                talus_mc::V3 t(u(rng), u(rng), u(rng));
+                t *= 2e4;
+                std::sort(t.data(), t.data() + 3, std::greater<>());
+                const Eigen::Matrix3d q =
+                    Eigen::HouseholderQR<Eigen::Matrix3d>(Eigen::Matrix3d::NullaryExpr([&] {
+                        return u(rng);
+                    })).householderQ();
+                for (int i = 0; i < 3; ++i) {
+                    in.t[i][lane] = t[i];
+                    for (int j = 0; j < 3; ++j)
+                        in.v[i][j][lane] = q(i, j);
+                }
+                const int lasts[] = {talus_mc::kElastic, talus_mc::kShearPlane,
+                                     talus_mc::kTensionPlane};
+                in.last[lane] = lasts[rng() % 3];
+                in.kappa[lane] = 1e-3 * (1.0 + u(rng));
+                in.vol[lane] = 1e-3 * u(rng);
+            }
+            talus_mc::PlaneLanes each = in;
+            talus_mc::plane_lanes_each(systems, st, el, each, in.kLanes);
+#if defined(TALUS_MC_HAS_PLANE_QUAD)
+            if (talus_mc::quad::available()) {
+                talus_mc::PlaneLanes vec = in;
+                talus_mc::quad::plane_lanes(systems, st, el, vec, 0);
+                talus_mc::quad::plane_lanes(systems, st, el, vec, 4);
+                for (std::size_t lane = 0; lane < in.kLanes; ++lane) {
+                    // Exactly (==); a lane whose verdict is 0 has no result.
+                    ASSERT_EQ(vec.verdict[lane], each.verdict[lane]);
+                    if (each.verdict[lane] == 0.0) continue;
+                    for (int e = 0; e < 6; ++e)
+                        EXPECT_EQ(vec.stress[e][lane], each.stress[e][lane]);
+                    EXPECT_EQ(vec.kappa_end[lane], each.kappa_end[lane]);
+                    EXPECT_EQ(vec.vol_end[lane], each.vol_end[lane]);
+                    EXPECT_EQ(vec.mode_end[lane], each.mode_end[lane]);
+                }
+            }
+#endif
+            for (std::size_t lane = 0; lane < in.kLanes; ++lane) {
+                const talus_mc::V3 t(in.t[0][lane], in.t[1][lane], in.t[2][lane]);
+                const double last = in.last[lane];
+                const int hint = last == 0.0 ? talus_mc::kNone
+                                             : talus_mc::candidate_of(static_cast<talus_mc::Mode>(
+                                                   static_cast<int>(last)));
+                const talus_mc::Return r = talus_mc::return_map(t, st, systems, hint);
+                const double verdict = each.verdict[lane];
+                ++verdicts[static_cast<int>(verdict)];
+                if (r.mode == talus_mc::kElastic) {
+                    EXPECT_EQ(verdict, 1.0);
+                    EXPECT_EQ(each.mode_end[lane],
+                              talus_mc::on_surface(t, st) ? last : double(talus_mc::kElastic));
+                    continue;
+                }
+                if (r.candidate != 0 && r.candidate != 1) {
+                    EXPECT_EQ(verdict, 0.0) << r.candidate;
+                    continue;
+                }
+                ASSERT_EQ(verdict, 2.0);
+                EXPECT_EQ(each.mode_end[lane], double(r.mode));
+                talus::sdk::SymmetricEigen sp;
+                sp.values = t;
+                for (int i = 0; i < 3; ++i)
+                    for (int j = 0; j < 3; ++j)
+                        sp.vectors(i, j) = in.v[i][j][lane];
+                const Vec6 s = sp.compose_stress(r.stress);
+                for (int e = 0; e < 6; ++e)
+                    EXPECT_EQ(each.stress[e][lane], s[e]);
+                const talus_mc::V3 x = el.solve(t - r.stress);
+                EXPECT_EQ(each.kappa_end[lane], in.kappa[lane] + talus_mc::deviatoric_measure(x));
+                EXPECT_EQ(each.vol_end[lane], in.vol[lane] + ((x[0] + x[1]) + x[2]));
+            }
+        }
+    }
+    // Every verdict, often.
+    EXPECT_GT(verdicts[0], 500);
+    EXPECT_GT(verdicts[1], 500);
+    EXPECT_GT(verdicts[2], 500);
 }
 
 // The candidates partition the trial space: at random trial stresses, for
@@ -820,8 +926,8 @@ TEST(MohrCoulomb, APointsResultDoesNotDependOnItsBatch) {
                 F[9 * k + 4 * static_cast<std::size_t>(i)] = 1.0;
         }
         const talus::test::PointsIn points{n, 3, s0, q0, de, rho, F};
-        auto run = [&](std::size_t size, bool in_place) {
-            return talus::test::update_in_batches(*mi, points, size, in_place);
+        auto run = [&](std::size_t size, bool in_place, bool tangent = true) {
+            return talus::test::update_in_batches(*mi, points, size, in_place, tangent);
         };
         const talus::test::PointsOut whole = run(n, false);
         int plastic = 0, quick = 0;
@@ -839,6 +945,19 @@ TEST(MohrCoulomb, APointsResultDoesNotDependOnItsBatch) {
             EXPECT_EQ(other.q, whole.q);
             EXPECT_EQ(other.c, whole.c);
             EXPECT_EQ(other.D, whole.D);
+        }
+        // Without the tangent (the solver's explicit steps) the points the
+        // screen leaves that stay elastic or return onto the shear or the
+        // cut-off plane take the model's plane pass, the others update():
+        // the same stresses, states and wave speeds, bit for bit.
+        for (const auto &[size, in_place] :
+             {std::pair<std::size_t, bool>{1, false}, {7, false}, {n, false}, {n, true}}) {
+            SCOPED_TRACE(testing::Message() << "without the tangent, batches of " << size
+                                            << (in_place ? ", in place" : ""));
+            const talus::test::PointsOut other = run(size, in_place, false);
+            EXPECT_EQ(other.s, whole.s);
+            EXPECT_EQ(other.q, whole.q);
+            EXPECT_EQ(other.c, whole.c);
         }
         // The deep points against the closed form. Hooke's increment is
         // exact up to the rounding of its few products and sums: 1e-15 of
