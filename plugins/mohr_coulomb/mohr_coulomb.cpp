@@ -316,28 +316,23 @@ struct MohrCoulomb {
   private:
     // yield_mode's values as stored.
     static constexpr double kElasticCode = talus_mc::kElastic;
-    static constexpr double kShearPlaneCode = talus_mc::kShearPlane;
-    static constexpr double kTensionPlaneCode = talus_mc::kTensionPlane;
 
-    // The plane pass: the points the screen left whose trial stress turns
-    // out admissible, or returns onto the shear plane or the cut-off plane
-    // (in the 3D benchmark block, four in five of them), finished here
-    // without the SDK's per-point set-up, eight decompositions at a time.
-    // Each step is finish()'s, through the same functions, so a point gets
-    // the same bits on either path. Left to update(): a strength that
-    // softens, a tangent asked for, a last return onto an edge or a point
-    // (tried there first), a start stress that may need its projection,
-    // and any trial that neither plane takes.
+    // The plane pass: the points the screen left, decomposed eight at a
+    // time, finished here without the SDK's per-point set-up. Those whose
+    // trial stress is admissible or returns onto the shear or the cut-off
+    // plane (in the 3D benchmark block, four in five of them) four a
+    // vector (plane_lanes.hpp), the others by finish() with the same
+    // decomposition. The vector form runs finish()'s operations through
+    // the same functions, so a point gets the same bits on either path.
+    // Without softening and a tangent only (else update_group()).
     void plane_pass(const talus::sdk::Points &p) const {
         std::array<std::uint32_t, talus::sdk::kEigenGroup> idx;
         std::size_t g = 0;
         for (std::size_t k = 0; k < p.n; ++k) {
-            const double last = p.state_start[state.size() * k + 2];
+            // Without a branch: where the screen's verdicts mix, one was
+            // mispredicted at every change.
             idx[g] = static_cast<std::uint32_t>(k);
-            // Without a branch: where the screen's verdicts and the modes
-            // mix, one was mispredicted at every change.
-            g += (p.done[k] == 0) &
-                 ((last == kElasticCode) | (last == kShearPlaneCode) | (last == kTensionPlaneCode));
+            g += p.done[k] == 0;
             if (g == idx.size()) {
                 plane_group(p, idx.data(), g);
                 g = 0;
@@ -382,13 +377,16 @@ struct MohrCoulomb {
         for (std::size_t j = 0; j < g; ++j) {
             const std::size_t k = idx[j];
             const double verdict = lanes.verdict[j];
-            if (verdict == 0.0) continue;
-            // A start stress the model did not put on the surface may need
-            // its projection before a return (finish()).
-            if (verdict == 2.0 && lanes.last[j] == kElasticCode &&
-                !clearly_elastic(Eigen::Map<const Vec6>(p.stress_start + 6 * k), fixed_strength_,
-                                 fixed_lode_bound_, fixed_inv_lode_bound_))
+            // finish() where neither plane takes the point, or a start
+            // stress the model did not put on the surface may need its
+            // projection before the return.
+            if (verdict == 0.0 ||
+                (verdict == 2.0 && lanes.last[j] == kElasticCode &&
+                 !clearly_elastic(Eigen::Map<const Vec6>(p.stress_start + 6 * k), fixed_strength_,
+                                  fixed_lode_bound_, fixed_inv_lode_bound_))) {
+                finish_at(p, k, trial[j], sp[j]);
                 continue;
+            }
             double *se = p.stress_end + 6 * k;
             double *q1 = p.state_end + state.size() * k;
             if (verdict == 1.0) {
@@ -405,6 +403,30 @@ struct MohrCoulomb {
             q1[2] = lanes.mode_end[j];
             p.done[k] = 1;
         }
+    }
+
+    // finish() on point k of a chunk, in place of update(): its start
+    // stress and state copied first (the end arrays may be the start
+    // ones), the end state already a copy of the start one (Points).
+    // finish() reads neither F nor the context a Points lacks.
+    void finish_at(const talus::sdk::Points &p, std::size_t k, const Vec6 &trial,
+                   const Spectral &sp) const {
+        const std::size_t ns = state.size();
+        std::array<double, state.size()> q0;
+        std::copy(p.state_start + ns * k, p.state_start + ns * (k + 1), q0.begin());
+        talus::sdk::PointIn in(p.strain_increment + 6 * k, nullptr, nullptr,
+                               p.stress_start + 6 * k);
+        in.time = p.time;
+        in.dt = p.dt;
+        in.density = p.density[k];
+        in.state = std::span<const double>(q0.data(), ns);
+        talus::sdk::PointOut out;
+        out.state = std::span<double>(p.state_end + ns * k, ns);
+        finish(in, out, trial, sp);
+        double *se = p.stress_end + 6 * k;
+        for (int e = 0; e < 6; ++e)
+            se[e] = out.stress[e];
+        p.done[k] = 1;
     }
 
     // K + 4G/3 = lambda + 2G: the P-wave (constrained) modulus.

@@ -70,12 +70,16 @@ TALUS_MC_LANE_INLINE void plane_lane(const Systems &sys, const Strength &st, con
         for (int i = 0; i < 3; ++i)
             s1[i] = s0[i];
     const M hint1 = last == static_cast<double>(kTensionPlane);
+    // A last return onto another part of the surface has its candidate
+    // tried first (return_map): left to the full update.
+    const M plane_hint = (last == static_cast<double>(kElastic)) |
+                         (last == static_cast<double>(kShearPlane)) | hint1;
     M not_v0 = v0, not_adm = adm;
     flip(not_v0);
     flip(not_adm);
     // v1 where the hint is the cut-off, else v1 unless v0.
     const M take1 = v1 & (hint1 | not_v0);
-    const M plastic = not_adm & (take1 | v0);
+    const M plastic = not_adm & (take1 | v0) & plane_hint;
     T s[3], d[3], x[3];
     for (int i = 0; i < 3; ++i) {
         s[i] = take1 ? s1[i] : s0[i];

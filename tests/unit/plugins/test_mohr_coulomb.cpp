@@ -298,8 +298,8 @@ TEST(MohrCoulomb, PeerVectorsTrialInvariantsYieldValuesAndReturnOnTheSurface) {
 // strengths below, each lane is admissible (verdict 1: the return_map is
 // elastic), returned onto the shear or the cut-off plane (2: return_map's
 // stress, composed as SymmetricEigen does, and its plastic strain), or left
-// to the full update (0: return_map goes elsewhere, or the hint's order
-// would choose otherwise).
+// to the full update (0: return_map goes elsewhere, or it would try the
+// last return's candidate first, an edge's or a point's).
 TEST(MohrCoulomb, PlaneLanesAreTheFullReturnOnTheirPlanes) {
     std::mt19937_64 rng(11);
     std::uniform_real_distribution<double> u(-1.0, 1.0);
@@ -329,9 +329,14 @@ TEST(MohrCoulomb, PlaneLanesAreTheFullReturnOnTheirPlanes) {
                     for (int j = 0; j < 3; ++j)
                         in.v[i][j][lane] = q(i, j);
                 }
-                const int lasts[] = {talus_mc::kElastic, talus_mc::kShearPlane,
-                                     talus_mc::kTensionPlane};
-                in.last[lane] = lasts[rng() % 3];
+                // Mostly the planes' modes, also others (whose candidate
+                // return_map tries first).
+                const int lasts[] = {talus_mc::kElastic,         talus_mc::kShearPlane,
+                                     talus_mc::kTensionPlane,    talus_mc::kElastic,
+                                     talus_mc::kShearPlane,      talus_mc::kTensionPlane,
+                                     talus_mc::kCompressionEdge, talus_mc::kTensionEdge,
+                                     talus_mc::kShearTensionLine};
+                in.last[lane] = lasts[rng() % 9];
                 in.kappa[lane] = 1e-3 * (1.0 + u(rng));
                 in.vol[lane] = 1e-3 * u(rng);
             }
@@ -369,8 +374,12 @@ TEST(MohrCoulomb, PlaneLanesAreTheFullReturnOnTheirPlanes) {
                               talus_mc::on_surface(t, st) ? last : double(talus_mc::kElastic));
                     continue;
                 }
-                if (r.candidate != 0 && r.candidate != 1) {
-                    EXPECT_EQ(verdict, 0.0) << r.candidate;
+                const int mode = static_cast<int>(last);
+                const bool plane_hint = mode == talus_mc::kElastic ||
+                                        mode == talus_mc::kShearPlane ||
+                                        mode == talus_mc::kTensionPlane;
+                if ((r.candidate != 0 && r.candidate != 1) || !plane_hint) {
+                    EXPECT_EQ(verdict, 0.0) << r.candidate << " " << last;
                     continue;
                 }
                 ASSERT_EQ(verdict, 2.0);
