@@ -13,7 +13,7 @@
 // point's bits do not depend on the form that took it (tested in
 // tests/unit/plugins/test_mohr_coulomb.cpp). A plastic point's
 // decompositions and returns were most of this model's cost in the 3D
-// benchmark block, a quarter of whose points leave the screen; each lane
+// benchmark block, a fifth of whose points leave the screen; each lane
 // shares its operations with three others and takes no branch.
 #pragma once
 

@@ -292,6 +292,18 @@ TEST(MohrCoulomb, PeerVectorsTrialInvariantsYieldValuesAndReturnOnTheSurface) {
     }
 }
 
+// The elasticity of the return's tests (E = 1e7 Pa, nu = 0.3), and a
+// strength's parameters (degrees, Pa).
+talus_mc::Elastic elastic_of_the_return_tests() {
+    talus_mc::Elastic el;
+    el.shear = 1e7 / 2.6;
+    el.lambda = 1e7 * 0.3 / (1.3 * 0.4);
+    return el;
+}
+struct Set {
+    double phi, psi, c, T;
+};
+
 // The plane pass's lanes (plane_lanes.hpp) against the full return
 // (return_map), and the four-lane vector form against the one-lane form
 // bit for bit: at random ordered trial stresses and directions, for the
@@ -303,12 +315,7 @@ TEST(MohrCoulomb, PeerVectorsTrialInvariantsYieldValuesAndReturnOnTheSurface) {
 TEST(MohrCoulomb, PlaneLanesAreTheFullReturnOnTheirPlanes) {
     std::mt19937_64 rng(11);
     std::uniform_real_distribution<double> u(-1.0, 1.0);
-    talus_mc::Elastic el;
-    el.shear = 1e7 / 2.6;
-    el.lambda = 1e7 * 0.3 / (1.3 * 0.4);
-    struct Set {
-        double phi, psi, c, T;
-    };
+    const talus_mc::Elastic el = elastic_of_the_return_tests();
     const Set sets[] = {{30, 0, 2000, 0}, {30, 10, 1e4, 5e3}, {35, 0, 0, 0}, {20, 5, 2e4, 1e9}};
     std::map<int, int> verdicts;
     for (const Set &set : sets) {
@@ -412,12 +419,7 @@ TEST(MohrCoulomb, PlaneLanesAreTheFullReturnOnTheirPlanes) {
 TEST(MohrCoulomb, ReturnCandidatesPartitionTheTrialSpace) {
     std::mt19937_64 rng(7);
     std::uniform_real_distribution<double> u(-1.0, 1.0);
-    talus_mc::Elastic el;
-    el.shear = 1e7 / 2.6;
-    el.lambda = 1e7 * 0.3 / (1.3 * 0.4);
-    struct Set {
-        double phi, psi, c, T;
-    };
+    const talus_mc::Elastic el = elastic_of_the_return_tests();
     const Set sets[] = {{30, 30, 1e4, 0},  {30, 10, 1e4, 5e3}, {35, 0, 0, 0},
                         {20, 5, 2e4, 1e9}, {0, 0, 1e4, 5e3},   {40, 40, 0, 0}};
     int checked = 0;
