@@ -232,7 +232,9 @@ struct MohrCoulomb {
     // The points of a chunk whose trial stress is clearly inside the
     // surface (clearly_elastic), finished in one loop without the SDK's
     // per-point set-up: most points of a batch (74 % of the 3D benchmark
-    // block's point-steps). The others go to update_group() and update().
+    // block's point-steps). The others, without softening or a tangent
+    // asked for, are finished by the plane pass here too; else they go to
+    // update_group() and update().
     void quick_update(const talus::sdk::Points &p) const {
         std::size_t k = 0;
 #if defined(TALUS_MC_HAS_QUAD_SCREEN)
