@@ -22,6 +22,8 @@
 #include <cmath>
 #include <cstddef>
 
+// The vector form with GCC on x86-64 (the form it was written and checked
+// with); elsewhere the one-lane form, the same bits.
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
 #define TALUS_MC_HAS_PLANE_QUAD 1
 #include <immintrin.h>

@@ -479,15 +479,15 @@ inline Return return_map(const V3 &trial, const Strength &st, const Elastic &el,
         [&](int i) { return make_system(kCandidates[static_cast<std::size_t>(i)], pl, el); }, hint);
 }
 
-// Equivalent plastic deviatoric strain of a principal plastic strain
-// increment x: sqrt(2/3 dev(x) : dev(x)).
-// Its square, for the lanes.
+// The square of deviatoric_measure (below), for the lanes.
 template <class T>
 TALUS_MC_LANE_INLINE void deviatoric_measure_squared(const T x[3], T &out) {
     const T m = ((x[0] + x[1]) + x[2]) / 3.0;
     const T d0 = x[0] - m, d1 = x[1] - m, d2 = x[2] - m;
     out = 2.0 / 3.0 * ((d0 * d0 + d1 * d1) + d2 * d2);
 }
+// Equivalent plastic deviatoric strain of a principal plastic strain
+// increment x: sqrt(2/3 dev(x) : dev(x)).
 inline double deviatoric_measure(const V3 &x) {
     double sq;
     deviatoric_measure_squared(x.data(), sq);
