@@ -346,25 +346,20 @@ struct MohrCoulomb {
     void plane_group(const talus::sdk::Points &p, const std::uint32_t *idx, std::size_t g) const {
         std::array<Vec6, talus::sdk::kEigenGroup> trial;
         std::array<Mat3, talus::sdk::kEigenGroup> m;
-        std::array<Spectral, talus::sdk::kEigenGroup> sp;
         for (std::size_t j = 0; j < g; ++j) {
             const std::size_t k = idx[j];
             trial[j] = Eigen::Map<const Vec6>(p.stress_start + 6 * k) +
                        hooke(Eigen::Map<const Vec6>(p.strain_increment + 6 * k));
             m[j] = talus::sdk::stress_to_matrix(trial[j]);
         }
-        talus::sdk::symmetric_eigen_group(m.data(), sp.data(), g);
         talus_mc::PlaneLanes lanes;
-        static_assert(talus_mc::PlaneLanes::kLanes == talus::sdk::kEigenGroup);
+        // The decompositions straight into the lanes (idle ones repeat the
+        // last point's), not point by point through a SymmetricEigen.
+        talus::sdk::symmetric_eigen_lanes(m.data(), g, lanes.trial);
         for (std::size_t lane = 0; lane < lanes.kLanes; ++lane) {
             // Idle lanes repeat the last point.
             const std::size_t j = std::min(lane, g - 1);
             const double *q0 = p.state_start + state.size() * idx[j];
-            for (int i = 0; i < 3; ++i) {
-                lanes.t[i][lane] = sp[j].values[i];
-                for (int c = 0; c < 3; ++c)
-                    lanes.v[i][c][lane] = sp[j].vectors(i, c);
-            }
             lanes.kappa[lane] = q0[0];
             lanes.vol[lane] = q0[1];
             lanes.last[lane] = q0[2];
@@ -386,7 +381,9 @@ struct MohrCoulomb {
                 (verdict == 2.0 && lanes.last[j] == kElasticCode &&
                  !clearly_elastic(Eigen::Map<const Vec6>(p.stress_start + 6 * k), fixed_strength_,
                                   fixed_lode_bound_, fixed_inv_lode_bound_))) {
-                finish_at(p, k, trial[j], sp[j]);
+                Spectral sp;
+                lanes.trial.get(j, sp);
+                finish_at(p, k, trial[j], sp);
                 continue;
             }
             double *se = p.stress_end + 6 * k;

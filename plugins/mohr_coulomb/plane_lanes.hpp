@@ -19,6 +19,8 @@
 
 #include "principal_return.hpp"
 
+#include <talus/sdk/spectral.hpp>
+
 #include <cmath>
 #include <cstddef>
 
@@ -33,12 +35,11 @@ namespace talus_mc {
 
 // Up to eight points, one lane each (structure of arrays).
 struct PlaneLanes {
-    static constexpr std::size_t kLanes = 8;
-    // In: ordered principal trial stresses (descending), their unit
-    // directions (v[i][j][lane]: component i of direction j), and the start
-    // state.
-    alignas(64) double t[3][kLanes];
-    alignas(64) double v[3][3][kLanes];
+    static constexpr std::size_t kLanes = talus::sdk::kEigenGroup;
+    // In: the ordered principal trial stresses (descending) and their unit
+    // directions (the SDK's lanes: vectors[i][j][lane], component i of
+    // direction j), and the start state.
+    talus::sdk::EigenLanes trial;
     alignas(64) double kappa[kLanes], vol[kLanes], last[kLanes];
     // Out: 0 the full update's (nothing else is meaningful), 1 admissible
     // (the trial stress stands; mode_end is its yield mode), 2 returned
@@ -112,9 +113,9 @@ inline void plane_lanes_each(const Systems &sys, const Strength &st, const Elast
     for (std::size_t k = 0; k < n; ++k) {
         double t[3], v[3][3], stress[6], dk_sq = 0.0, dvol = 0.0;
         for (int i = 0; i < 3; ++i) {
-            t[i] = p.t[i][k];
+            t[i] = p.trial.values[i][k];
             for (int j = 0; j < 3; ++j)
-                v[i][j] = p.v[i][j][k];
+                v[i][j] = p.trial.vectors[i][j][k];
         }
         plane_lane<double, bool>(sys, st, el, t, v, p.last[k], p.verdict[k], stress, dk_sq, dvol,
                                  p.mode_end[k]);
@@ -147,9 +148,9 @@ __attribute__((target("avx2"))) inline void plane_lanes(const Systems &sys, cons
                                                         std::size_t first) {
     Lanes t[3], v[3][3];
     for (int i = 0; i < 3; ++i) {
-        t[i] = load(p.t[i] + first);
+        t[i] = load(p.trial.values[i] + first);
         for (int j = 0; j < 3; ++j)
-            v[i][j] = load(p.v[i][j] + first);
+            v[i][j] = load(p.trial.vectors[i][j] + first);
     }
     const Lanes last = load(p.last + first);
     Lanes verdict, stress[6], dk_sq, dvol, mode_end;

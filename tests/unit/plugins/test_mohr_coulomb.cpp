@@ -335,9 +335,9 @@ TEST(MohrCoulomb, PlaneLanesAreTheFullReturnOnTheirPlanes) {
                         return u(rng);
                     })).householderQ();
                 for (int i = 0; i < 3; ++i) {
-                    in.t[i][lane] = t[i];
+                    in.trial.values[i][lane] = t[i];
                     for (int j = 0; j < 3; ++j)
-                        in.v[i][j][lane] = q(i, j);
+                        in.trial.vectors[i][j][lane] = q(i, j);
                 }
                 // Mostly the planes' modes, also others (whose candidate
                 // return_map tries first).
@@ -370,7 +370,8 @@ TEST(MohrCoulomb, PlaneLanesAreTheFullReturnOnTheirPlanes) {
             }
 #endif
             for (std::size_t lane = 0; lane < in.kLanes; ++lane) {
-                const talus_mc::V3 t(in.t[0][lane], in.t[1][lane], in.t[2][lane]);
+                const talus_mc::V3 t(in.trial.values[0][lane], in.trial.values[1][lane],
+                                     in.trial.values[2][lane]);
                 const double last = in.last[lane];
                 const int hint = last == 0.0 ? talus_mc::kNone
                                              : talus_mc::candidate_of(static_cast<talus_mc::Mode>(
@@ -398,7 +399,7 @@ TEST(MohrCoulomb, PlaneLanesAreTheFullReturnOnTheirPlanes) {
                 sp.values = t;
                 for (int i = 0; i < 3; ++i)
                     for (int j = 0; j < 3; ++j)
-                        sp.vectors(i, j) = in.v[i][j][lane];
+                        sp.vectors(i, j) = in.trial.vectors[i][j][lane];
                 const Vec6 s = sp.compose_stress(r.stress);
                 for (int e = 0; e < 6; ++e)
                     EXPECT_EQ(each.stress[e][lane], s[e]);

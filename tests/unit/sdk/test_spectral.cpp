@@ -238,11 +238,12 @@ TEST(SymmetricEigen, PairLanesAreTheSingleDecompositionBitForBit) {
     EXPECT_LE((b.compose(b.values) - m[4]).cwiseAbs().maxCoeff(), kTol * 1e4);
 }
 
-// symmetric_eigen_group: every matrix of a group of 1 to 8 is the single
-// decomposition bit for bit, whichever path took it (the AVX-512 lanes
-// where this processor has them and the group has four general matrices
-// or more, else the pairs; the test runs both), beside special matrices
-// (scaled, multiples of the identity, NaN, plane) in any lane.
+// symmetric_eigen_group and symmetric_eigen_lanes: every matrix of a group
+// of 1 to 8 is the single decomposition bit for bit, whichever path took
+// it (the AVX-512 lanes where this processor has them and the group has
+// four general matrices or more, else the pairs; the test runs both),
+// beside special matrices (scaled, multiples of the identity, NaN, plane,
+// equal values) in any lane.
 TEST(SymmetricEigen, GroupsAreTheSingleDecompositionBitForBit) {
     std::mt19937 gen(17);
     const std::vector<Mat3> pool = random_symmetric(gen, 400);
@@ -255,6 +256,14 @@ TEST(SymmetricEigen, GroupsAreTheSingleDecompositionBitForBit) {
     Mat3 plane = pool[3];
     plane(0, 2) = plane(2, 0) = plane(1, 2) = plane(2, 1) = 0.0;
     special.push_back(plane);
+    // Values 0, 2, 2 of a general matrix, the two equal ones exact: the
+    // order's ties.
+    Mat3 tie;
+    tie << 1.0, 0.0, 1.0, 0.0, 2.0, 0.0, 1.0, 0.0, 1.0;
+    special.push_back(tie);
+    Mat3 nan_diagonal = pool[4];
+    nan_diagonal(1, 1) = std::numeric_limits<double>::quiet_NaN();
+    special.push_back(nan_diagonal);
     auto same = [](const talus::sdk::SymmetricEigen &a, const talus::sdk::SymmetricEigen &b) {
         return std::memcmp(a.values.data(), b.values.data(), sizeof(double) * 3) == 0 &&
                std::memcmp(a.vectors.data(), b.vectors.data(), sizeof(double) * 9) == 0;
@@ -275,8 +284,17 @@ TEST(SymmetricEigen, GroupsAreTheSingleDecompositionBitForBit) {
                         special[static_cast<std::size_t>(trial / 2) % special.size()];
                 talus::sdk::SymmetricEigen e[talus::sdk::kEigenGroup];
                 talus::sdk::symmetric_eigen_group(m, e, n);
-                for (std::size_t k = 0; k < n; ++k) {
-                    const talus::sdk::SymmetricEigen one = talus::sdk::symmetric_eigen(m[k]);
+                // The same as lanes: lanes from n on repeat lane n - 1.
+                talus::sdk::EigenLanes lanes;
+                talus::sdk::symmetric_eigen_lanes(m, n, lanes);
+                for (std::size_t k = 0; k < talus::sdk::kEigenGroup; ++k) {
+                    const std::size_t src = std::min(k, n - 1);
+                    const talus::sdk::SymmetricEigen one = talus::sdk::symmetric_eigen(m[src]);
+                    talus::sdk::SymmetricEigen lane;
+                    lanes.get(k, lane);
+                    EXPECT_TRUE(same(lane, one)) << "lanes of " << n << ", lane " << k
+                                                 << (octet ? " (AVX-512)" : " (pairs)");
+                    if (k >= n) continue;
                     EXPECT_TRUE(same(e[k], one)) << "group of " << n << ", lane " << k
                                                  << (octet ? " (AVX-512)" : " (pairs)");
                     EXPECT_EQ(e[k].values.hasNaN(), m[k].hasNaN()) << n << " " << k;

@@ -73,6 +73,33 @@ struct SymmetricEigen {
     }
 };
 
+// The most matrices symmetric_eigen_group takes.
+inline constexpr std::size_t kEigenGroup = 8;
+
+// Up to kEigenGroup ordered decompositions side by side, one lane each
+// (structure of arrays, for a model that goes on with them across vector
+// lanes): what SymmetricEigen holds, lane by lane.
+struct EigenLanes {
+    alignas(64) double values[3][kEigenGroup]; // values[k][lane], descending in k
+    alignas(
+        64) double vectors[3][3][kEigenGroup]; // vectors[i][k][lane]: component i of direction k
+    // Lane `lane` as a SymmetricEigen (the same bits).
+    void get(std::size_t lane, SymmetricEigen &e) const {
+        for (int k = 0; k < 3; ++k) {
+            e.values[k] = values[k][lane];
+            for (int i = 0; i < 3; ++i)
+                e.vectors(i, k) = vectors[i][k][lane];
+        }
+    }
+    void set(std::size_t lane, const SymmetricEigen &e) {
+        for (int k = 0; k < 3; ++k) {
+            values[k][lane] = e.values[k];
+            for (int i = 0; i < 3; ++i)
+                vectors[i][k][lane] = e.vectors(i, k);
+        }
+    }
+};
+
 namespace detail {
 
 // The decomposition below is written once over a lane type T: a double (one
@@ -197,13 +224,9 @@ inline void plane_eigen(const Mat3 &a, SymmetricEigen &out) {
 namespace detail {
 
 // Up to eight matrices' upper triangles (a00, a11, a22, a01, a02, a12, one
-// array of eight per entry; unused lanes hold anything finite) and their
-// unordered decompositions, one lane each.
+// array of eight per entry; unused lanes hold anything finite).
 struct OctetIn {
     double a[6][8];
-};
-struct OctetOut {
-    double q[8], scale[8], l[3][8], vec[3][3][8];
 };
 
 } // namespace detail
@@ -245,17 +268,42 @@ inline Lanes lane_sqrt(Lanes x) { return (Lanes)_mm512_mask_sqrt_pd((__m512d)x, 
 
 #include "talus/sdk/detail/spectral_kernel.inc"
 
-inline void unordered_octet(const OctetIn &in, OctetOut &out) {
+// The eight matrices' decompositions (unordered_eigen), each ordered as
+// order_lane orders one, with its operations lane by lane: the same
+// comparisons (a later value takes a place two meet at, NaN stays where
+// none lands) and the same q + scale l. For general matrices only (not
+// is_plane), so none is a multiple of the identity (whose entries (0, 2)
+// and (1, 2) are zero). Ordering each lane apart, through a SymmetricEigen,
+// was a third of what a group cost beyond the lanes' arithmetic.
+inline void ordered_octet(const OctetIn &in, EigenLanes &out) {
     Lanes e[6];
     for (int c = 0; c < 6; ++c)
         e[c] = (Lanes)_mm512_loadu_pd(in.a[c]);
     const Unordered<Lanes> u = unordered_eigen<Lanes>(e[0], e[1], e[2], e[3], e[4], e[5]);
-    _mm512_storeu_pd(out.q, (__m512d)u.q);
-    _mm512_storeu_pd(out.scale, (__m512d)u.scale);
+    // Value i's place r: (l_j > l_i) + (l_k > l_i), ties by index (>= for
+    // an earlier value), as a mask per place.
+    const LanesMask above[3][2] = {{u.l[1] > u.l[0], u.l[2] > u.l[0]},
+                                   {u.l[0] >= u.l[1], u.l[2] > u.l[1]},
+                                   {u.l[0] >= u.l[2], u.l[1] >= u.l[2]}};
+    const Lanes nan = Lanes{} + std::numeric_limits<double>::quiet_NaN();
+    Lanes val[3] = {nan, nan, nan}, vec[3][3];
+    for (int i = 0; i < 3; ++i)
+        for (int k = 0; k < 3; ++k)
+            vec[i][k] = nan;
     for (int i = 0; i < 3; ++i) {
-        _mm512_storeu_pd(out.l[i], (__m512d)u.l[i]);
-        for (int j = 0; j < 3; ++j)
-            _mm512_storeu_pd(out.vec[i][j], (__m512d)u.vec[i][j]);
+        const LanesMask a = above[i][0], b = above[i][1];
+        const LanesMask at[3] = {~a & ~b, a ^ b, a & b};
+        const Lanes value = u.q + u.scale * u.l[i];
+        for (int r = 0; r < 3; ++r) {
+            val[r] = lane_select(at[r], value, val[r]);
+            for (int c = 0; c < 3; ++c)
+                vec[c][r] = lane_select(at[r], u.vec[i][c], vec[c][r]);
+        }
+    }
+    for (int r = 0; r < 3; ++r) {
+        _mm512_storeu_pd(out.values[r], (__m512d)val[r]);
+        for (int c = 0; c < 3; ++c)
+            _mm512_storeu_pd(out.vectors[c][r], (__m512d)vec[c][r]);
     }
 }
 
@@ -316,9 +364,6 @@ inline void general_eigen_lanes(const Mat3 &a, const Mat3 &b, SymmetricEigen &ea
 
 } // namespace detail
 
-// The most matrices symmetric_eigen_group takes.
-inline constexpr std::size_t kEigenGroup = 8;
-
 namespace detail {
 
 // The decompositions of *a[k] into *out[k], k < n <= kEigenGroup, each bit
@@ -352,18 +397,10 @@ inline void eigen_group(const Mat3 *const *a, SymmetricEigen *const *out, std::s
             in.a[4][lane] = m(0, 2);
             in.a[5][lane] = m(1, 2);
         }
-        OctetOut o;
-        octet::unordered_octet(in, o);
-        for (std::size_t lane = 0; lane < ng; ++lane) {
-            double l[3], vec[3][3];
-            for (int i = 0; i < 3; ++i) {
-                l[i] = o.l[i][lane];
-                for (int j = 0; j < 3; ++j)
-                    vec[i][j] = o.vec[i][j][lane];
-            }
-            const std::size_t k = general[lane];
-            order_lane(o.q[lane], o.scale[lane], l, vec, is_multiple_of_identity(*a[k]), *out[k]);
-        }
+        EigenLanes o;
+        octet::ordered_octet(in, o);
+        for (std::size_t lane = 0; lane < ng; ++lane)
+            o.get(lane, *out[general[lane]]);
         return;
     }
 #endif
@@ -410,6 +447,37 @@ inline void symmetric_eigen_group(const Mat3 *a, SymmetricEigen *out, std::size_
         res[k] = out + k;
     }
     detail::eigen_group(in, res, n);
+}
+
+// symmetric_eigen_group's decompositions of a[0..n), 1 <= n <= kEigenGroup,
+// as lanes: lane k is a[k]'s, bit for bit what symmetric_eigen gives, and
+// the lanes from n on repeat lane n - 1 (a vector over all the lanes then
+// meets only real decompositions). Eight matrices none of which is a plane
+// one go straight from the vector to the lanes.
+inline void symmetric_eigen_lanes(const Mat3 *a, std::size_t n, EigenLanes &out) {
+#if defined(TALUS_SDK_HAS_OCTET)
+    bool general = n >= 4 && detail::octet_enabled();
+    for (std::size_t k = 0; k < n && general; ++k)
+        general = !detail::is_plane(a[k]);
+    if (general) {
+        detail::OctetIn in;
+        for (std::size_t lane = 0; lane < kEigenGroup; ++lane) {
+            const Mat3 &m = a[std::min(lane, n - 1)];
+            in.a[0][lane] = m(0, 0);
+            in.a[1][lane] = m(1, 1);
+            in.a[2][lane] = m(2, 2);
+            in.a[3][lane] = m(0, 1);
+            in.a[4][lane] = m(0, 2);
+            in.a[5][lane] = m(1, 2);
+        }
+        detail::octet::ordered_octet(in, out);
+        return;
+    }
+#endif
+    SymmetricEigen e[kEigenGroup];
+    symmetric_eigen_group(a, e, n);
+    for (std::size_t lane = 0; lane < kEigenGroup; ++lane)
+        out.set(lane, e[std::min(lane, n - 1)]);
 }
 
 } // namespace talus::sdk
