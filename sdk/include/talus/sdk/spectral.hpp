@@ -227,6 +227,14 @@ namespace detail {
 // array of eight per entry; unused lanes hold anything finite).
 struct OctetIn {
     double a[6][8];
+    void set(std::size_t lane, const Mat3 &m) {
+        a[0][lane] = m(0, 0);
+        a[1][lane] = m(1, 1);
+        a[2][lane] = m(2, 2);
+        a[3][lane] = m(0, 1);
+        a[4][lane] = m(0, 2);
+        a[5][lane] = m(1, 2);
+    }
 };
 
 } // namespace detail
@@ -387,16 +395,9 @@ inline void eigen_group(const Mat3 *const *a, SymmetricEigen *const *out, std::s
     // 30 ns a lane against 60 a matrix, docs/performance.md).
     if (ng >= 4 && octet_enabled()) {
         OctetIn in;
-        for (std::size_t lane = 0; lane < kEigenGroup; ++lane) {
-            // Idle lanes repeat the last matrix: lanes do not mix.
-            const Mat3 &m = *a[general[std::min(lane, ng - 1)]];
-            in.a[0][lane] = m(0, 0);
-            in.a[1][lane] = m(1, 1);
-            in.a[2][lane] = m(2, 2);
-            in.a[3][lane] = m(0, 1);
-            in.a[4][lane] = m(0, 2);
-            in.a[5][lane] = m(1, 2);
-        }
+        // Idle lanes repeat the last matrix: lanes do not mix.
+        for (std::size_t lane = 0; lane < kEigenGroup; ++lane)
+            in.set(lane, *a[general[std::min(lane, ng - 1)]]);
         EigenLanes o;
         octet::ordered_octet(in, o);
         for (std::size_t lane = 0; lane < ng; ++lane)
@@ -461,15 +462,8 @@ inline void symmetric_eigen_lanes(const Mat3 *a, std::size_t n, EigenLanes &out)
         general = !detail::is_plane(a[k]);
     if (general) {
         detail::OctetIn in;
-        for (std::size_t lane = 0; lane < kEigenGroup; ++lane) {
-            const Mat3 &m = a[std::min(lane, n - 1)];
-            in.a[0][lane] = m(0, 0);
-            in.a[1][lane] = m(1, 1);
-            in.a[2][lane] = m(2, 2);
-            in.a[3][lane] = m(0, 1);
-            in.a[4][lane] = m(0, 2);
-            in.a[5][lane] = m(1, 2);
-        }
+        for (std::size_t lane = 0; lane < kEigenGroup; ++lane)
+            in.set(lane, a[std::min(lane, n - 1)]);
         detail::octet::ordered_octet(in, out);
         return;
     }
