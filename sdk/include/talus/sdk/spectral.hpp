@@ -80,9 +80,10 @@ inline constexpr std::size_t kEigenGroup = 8;
 // (structure of arrays, for a model that goes on with them across vector
 // lanes): what SymmetricEigen holds, lane by lane.
 struct EigenLanes {
-    alignas(64) double values[3][kEigenGroup]; // values[k][lane], descending in k
-    alignas(
-        64) double vectors[3][3][kEigenGroup]; // vectors[i][k][lane]: component i of direction k
+    // values[k][lane]: value k, descending in k.
+    alignas(64) double values[3][kEigenGroup];
+    // vectors[i][k][lane]: component i of direction k (of value k).
+    alignas(64) double vectors[3][3][kEigenGroup];
     // Lane `lane` as a SymmetricEigen (the same bits).
     void get(std::size_t lane, SymmetricEigen &e) const {
         for (int k = 0; k < 3; ++k) {
