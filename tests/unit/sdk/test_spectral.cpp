@@ -178,16 +178,22 @@ TEST(SymmetricEigen, ExtremeScalesAreScaledNotOverflowed) {
 }
 
 TEST(SymmetricEigen, NaNInGivesNaNOut) {
-    // Off the diagonal of an isotropic matrix (where the largest entry of
-    // A - q I would be 0 without it) and on the diagonal.
-    for (int i : {0, 1})
-        for (int j : {1, 2}) {
-            Mat3 a = 2.0 * Mat3::Identity();
-            a(i, j) = a(j, i) = std::numeric_limits<double>::quiet_NaN();
-            const talus::sdk::SymmetricEigen e = talus::sdk::symmetric_eigen(a);
-            EXPECT_TRUE(e.values.hasNaN()) << i << j;
-            EXPECT_TRUE(e.compose(V3::Ones()).hasNaN()) << i << j;
-        }
+    // NaN in any entry of an isotropic matrix (where the largest entry of
+    // A - q I would be 0 without it), of a general one and of a plane one
+    // (where NaN at (2, 2) leaves the in-plane block finite: only the
+    // place no value takes carries it out).
+    Mat3 general, plane;
+    general << 3.0, 0.5, -0.25, 0.5, 1.0, 0.75, -0.25, 0.75, 2.0;
+    plane << 3.0, 0.5, 0.0, 0.5, 1.0, 0.0, 0.0, 0.0, 2.0;
+    for (const Mat3 &base : {Mat3(2.0 * Mat3::Identity()), general, plane})
+        for (int i = 0; i < 3; ++i)
+            for (int j = i; j < 3; ++j) {
+                Mat3 a = base;
+                a(i, j) = a(j, i) = std::numeric_limits<double>::quiet_NaN();
+                const talus::sdk::SymmetricEigen e = talus::sdk::symmetric_eigen(a);
+                EXPECT_TRUE(e.values.hasNaN()) << base << "\n" << i << j;
+                EXPECT_TRUE(e.compose(V3::Ones()).hasNaN()) << base << "\n" << i << j;
+            }
 }
 
 // symmetric_eigen_pair decomposes two matrices in the two lanes of one
@@ -327,7 +333,7 @@ TEST(SymmetricEigen, TheScalarInstanceGivesTheLanePairsBits) {
         const talus::sdk::detail::Unordered<double> s = talus::sdk::detail::unordered_eigen<double>(
             a(0, 0), a(1, 1), a(2, 2), a(0, 1), a(0, 2), a(1, 2));
         talus::sdk::SymmetricEigen scalar;
-        talus::sdk::detail::order_lane(s.q, s.scale, s.l, s.vec, false, scalar);
+        talus::sdk::detail::order_lane(s.q, s.scale, s.l, s.vec, scalar);
         const talus::sdk::SymmetricEigen pair = talus::sdk::symmetric_eigen(a);
         EXPECT_EQ(0, std::memcmp(scalar.values.data(), pair.values.data(), sizeof(double) * 3))
             << k;

@@ -151,20 +151,13 @@ inline double lane_copysign(double magnitude, double sign) {
 inline double lane_sqrt(double x) { return std::sqrt(x); }
 #include "talus/sdk/detail/spectral_kernel.inc"
 
-// One lane's result, ordered. `identity`: C = 0 (q I has any basis).
+// One lane's result, ordered (is_above), each value stored at its
+// place as an index.
 inline void order_lane(double q, double scale, const double l[3], const double vec[3][3],
-                       bool identity, SymmetricEigen &out) {
-    if (identity) {
-        out.values.setConstant(q);
-        out.vectors.setIdentity();
-        return;
-    }
-    // Each value's place in descending order (ties by index), without
-    // branches.
-    const int rank[3] = {int(l[1] > l[0]) + int(l[2] > l[0]), int(l[0] >= l[1]) + int(l[2] > l[1]),
-                         int(l[0] >= l[2]) + int(l[1] >= l[2])};
-    // A NaN value compares false and two ranks then meet: the place left
-    // empty keeps NaN, so that NaN in gives NaN out.
+                       SymmetricEigen &out) {
+    const int rank[3] = {int(is_above(l, 1, 0)) + int(is_above(l, 2, 0)),
+                         int(is_above(l, 0, 1)) + int(is_above(l, 2, 1)),
+                         int(is_above(l, 0, 2)) + int(is_above(l, 1, 2))};
     out.values.setConstant(std::numeric_limits<double>::quiet_NaN());
     out.vectors.setConstant(std::numeric_limits<double>::quiet_NaN());
     for (int i = 0; i < 3; ++i) {
@@ -217,7 +210,7 @@ inline void plane_eigen(const Mat3 &a, SymmetricEigen &out) {
     const double g = scale * gs;
     const double l[3] = {a(2, 2), mean + std::copysign(g, h), mean - std::copysign(g, h)};
     const double vec[3][3] = {{0.0, 0.0, 1.0}, {s0, s1, 0.0}, {s1, -s0, 0.0}};
-    order_lane(0.0, 1.0, l, vec, /*identity=*/false, out);
+    order_lane(0.0, 1.0, l, vec, out);
 }
 
 } // namespace detail
@@ -277,30 +270,25 @@ inline Lanes lane_sqrt(Lanes x) { return (Lanes)_mm512_mask_sqrt_pd((__m512d)x, 
 
 #include "talus/sdk/detail/spectral_kernel.inc"
 
-// The eight matrices' decompositions (unordered_eigen), each ordered as
-// order_lane orders one, with its operations lane by lane: the same
-// comparisons (a later value takes a place two meet at, NaN stays where
-// none lands) and the same q + scale l. For general matrices only (not
-// is_plane), so none is a multiple of the identity (whose entries (0, 2)
-// and (1, 2) are zero). Ordering each lane apart, through a SymmetricEigen,
-// was a third of what a group cost beyond the lanes' arithmetic.
+// The eight matrices' decompositions (unordered_eigen), ordered by the
+// rule order_lane follows (is_above), as selects per place, and the
+// same q + scale l. For general matrices only (not is_plane), so none is a
+// multiple of the identity (whose entries (0, 2) and (1, 2) are zero).
+// Ordering each lane apart, through a SymmetricEigen, was a third of what
+// a group cost beyond the lanes' arithmetic.
 inline void ordered_octet(const OctetIn &in, EigenLanes &out) {
     Lanes e[6];
     for (int c = 0; c < 6; ++c)
         e[c] = (Lanes)_mm512_loadu_pd(in.a[c]);
     const Unordered<Lanes> u = unordered_eigen<Lanes>(e[0], e[1], e[2], e[3], e[4], e[5]);
-    // Value i's place r: (l_j > l_i) + (l_k > l_i), ties by index (>= for
-    // an earlier value), as a mask per place.
-    const LanesMask above[3][2] = {{u.l[1] > u.l[0], u.l[2] > u.l[0]},
-                                   {u.l[0] >= u.l[1], u.l[2] > u.l[1]},
-                                   {u.l[0] >= u.l[2], u.l[1] >= u.l[2]}};
     const Lanes nan = Lanes{} + std::numeric_limits<double>::quiet_NaN();
     Lanes val[3] = {nan, nan, nan}, vec[3][3];
     for (int i = 0; i < 3; ++i)
         for (int k = 0; k < 3; ++k)
             vec[i][k] = nan;
     for (int i = 0; i < 3; ++i) {
-        const LanesMask a = above[i][0], b = above[i][1];
+        const LanesMask a = is_above(u.l, i == 0 ? 1 : 0, i), b = is_above(u.l, i == 2 ? 1 : 2, i);
+        // At place 0 when neither is above, 1 when one is, 2 when both are.
         const LanesMask at[3] = {~a & ~b, a ^ b, a & b};
         const Lanes value = u.q + u.scale * u.l[i];
         for (int r = 0; r < 3; ++r) {
@@ -342,7 +330,9 @@ namespace talus::sdk {
 namespace detail {
 
 // The decompositions of a and b, side by side where the compiler has the
-// lane pair; eb may be null (a alone).
+// lane pair; eb may be null (a alone). For general matrices only (not
+// is_plane), so neither is a multiple of the identity, which has no order
+// of its own (plane_eigen gives it the axes).
 inline void general_eigen_lanes(const Mat3 &a, const Mat3 &b, SymmetricEigen &ea,
                                 SymmetricEigen *eb) {
 #if defined(TALUS_SDK_HAS_LANE_PAIR)
@@ -357,16 +347,14 @@ inline void general_eigen_lanes(const Mat3 &a, const Mat3 &b, SymmetricEigen &ea
             for (int j = 0; j < 3; ++j)
                 vec[i][j] = u.vec[i][j][lane];
         }
-        const Mat3 &m = lane == 0 ? a : b;
-        order_lane(u.q[lane], u.scale[lane], l, vec, is_multiple_of_identity(m),
-                   lane == 0 ? ea : *eb);
+        order_lane(u.q[lane], u.scale[lane], l, vec, lane == 0 ? ea : *eb);
     }
 #else
     for (int lane = 0; lane < (eb ? 2 : 1); ++lane) {
         const Mat3 &m = lane == 0 ? a : b;
         const Unordered<double> u =
             unordered_eigen<double>(m(0, 0), m(1, 1), m(2, 2), m(0, 1), m(0, 2), m(1, 2));
-        order_lane(u.q, u.scale, u.l, u.vec, is_multiple_of_identity(m), lane == 0 ? ea : *eb);
+        order_lane(u.q, u.scale, u.l, u.vec, lane == 0 ? ea : *eb);
     }
 #endif
 }
