@@ -183,8 +183,9 @@ template <class L, Isa I, int D, class S, bool Mass, bool Momentum, bool Affine,
     };
     const std::uint32_t *k = begin;
     if constexpr (requires { S::interior_margin; }) {
-        // Packs of N particles, their stencils evaluated together; a pack
-        // with a particle near a face goes one by one.
+        // Packs of N particles, their stencils evaluated together; with the
+        // affine transfers a pack with a particle near a face goes one by
+        // one (StencilPack::eval).
         constexpr int N = kPointLanes<I>;
         StencilPack<D, S, N> pack;
         for (; end - k >= N; k += N) {

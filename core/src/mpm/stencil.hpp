@@ -405,7 +405,8 @@ struct Stencil : StencilSums<Stencil<D, S>, D, S::width> {
 // particle. The sums then run particle by particle, each on its lane of
 // the pack's factors (lane(j)), read from memory as the broadcasts they
 // need anyway. For the kernels whose pieces are the same polynomials
-// everywhere away from the faces (the B-splines: S::pieces).
+// everywhere away from the faces (the B-splines: S::pieces); a particle
+// near a face gets the clamped functions in its lane (clamp_lanes).
 template <int D, class S, int N>
 struct StencilPack {
     static constexpr int W = S::width;
@@ -435,8 +436,9 @@ struct StencilPack {
     }
 
     // The pack of particles index[0..N) of s (eval), or first .. first + N
-    // (eval_run); false, with nothing done, if one of them is near a face
-    // (Stencil::interior). Offsets: also off, w_off and dinv.
+    // (eval_run). Offsets: also off, w_off and dinv; then false, with
+    // nothing done, if one of them is near a face (Stencil::interior),
+    // whose offsets and moments are its own, not the pack's.
     template <bool Offsets>
     [[gnu::always_inline]] bool eval(const GridGeometry &g, const ParticleSet &s,
                                      const std::uint32_t *index) {
@@ -469,7 +471,9 @@ struct StencilPack {
             near += xi[d] >= lo ? zero : one;
             near += xi[d] < hi ? zero : one;
         }
-        if (any_lane<N>(near)) return false;
+        const bool clamped = any_lane<N>(near);
+        if constexpr (Offsets)
+            if (clamped) return false;
         typedef int Ints __attribute__((vector_size(N * sizeof(int))));
         for (int d = 0; d < D; ++d) {
             V fl;
@@ -491,7 +495,50 @@ struct StencilPack {
             }
             if constexpr (Offsets) dinv[d] = g.affine_dinv;
         }
+        if (clamped) [[unlikely]] {
+            alignas(64) double at[D][N];
+            for (int d = 0; d < D; ++d)
+                store_vector<N>(at[d], xi[d]);
+            clamp_lanes(g, at);
+        }
         return true;
+    }
+
+    // The lanes of the particles near a face (S::interior false on an
+    // axis, or xi NaN): their weights, slopes and first nodes as
+    // Stencil::eval<true> computes them, S::eval_bounded on every axis.
+    // On an axis where such a particle is interior that is S::eval, the
+    // uniform values above, but computed here, in code for the baseline:
+    // p2g.cpp and g2p.cpp contract the kernels' multiply-adds where the
+    // target has them, eval_bounded (baseline) does not, and this keeps a
+    // particle's weights the bits they had when such a pack went particle
+    // by particle. It did, all N of them, outside the lanes: 11.5 % of the
+    // packs of the 3D benchmark block (1.2 % in 2D). Out of line and
+    // scalar: a function does not inherit the AVX-512 kernel's target
+    // (OutOfLine), and this one takes nothing but arrays.
+    [[gnu::noinline]] void clamp_lanes(const GridGeometry &g, const double (&at)[D][N]) {
+        for (int j = 0; j < N; ++j) {
+            bool interior[D], inner = true;
+            for (int d = 0; d < D; ++d) {
+                interior[d] = S::interior(at[d][j], g.cells[static_cast<std::size_t>(d)]);
+                inner = inner && interior[d];
+            }
+            if (inner) continue;
+            for (int d = 0; d < D; ++d) {
+                int b;
+                double wj[W], dwj[W], node_point[W];
+                if (interior[d])
+                    S::eval(at[d][j], 0.0, b, wj, dwj);
+                else
+                    S::eval_bounded(at[d][j], 0.0, g.cells[static_cast<std::size_t>(d)], b, wj, dwj,
+                                    node_point);
+                base[d][j] = b;
+                for (int k = 0; k < W; ++k) {
+                    w[d][k][j] = wj[k];
+                    dw[d][k][j] = dwj[k] * g.inv_h;
+                }
+            }
+        }
     }
 };
 

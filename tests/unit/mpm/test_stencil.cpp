@@ -236,8 +236,11 @@ namespace {
 // A pack's lanes (StencilPack, N particles evaluated together) are the
 // per-particle stencils, bit for bit: the same operations in the same order
 // in every lane. Exact equality is the claim (the kernels' results do not
-// depend on where a particle falls in a pack); a pack with a particle near
-// a face is refused whole and left to the per-particle path.
+// depend on where a particle falls in a pack). A particle near a face gets
+// the clamped functions in its lane (StencilPack::clamp_lanes), the same
+// bits as its own Stencil::eval<true>; with the offsets (the affine
+// transfers), whose moments are a particle's own there, such a pack is
+// refused whole and left to the per-particle path.
 template <int N, int D, class S>
 void check_pack(talus::ShapeKind kind) {
     constexpr int W = S::width;
@@ -294,6 +297,60 @@ void check_pack(talus::ShapeKind kind) {
         EXPECT_FALSE(pk.template eval_run<true>(g, set, 0)) << "near-face position " << at;
         set.x[0][N - 1] = saved;
     }
+    // Without the offsets: packs whose particles sit next to the faces
+    // (on them, inside the margin, at the margin itself, one axis or
+    // several), mixed with interior ones, are taken, each lane its
+    // particle's own stencil.
+    const double far_x = g.cells[0] * 1.0, far_y = g.cells[1] * 1.0;
+    const double near_at[] = {0.0,
+                              1e-12,
+                              0.3,
+                              S::interior_margin - 1e-9,
+                              S::interior_margin,
+                              far_x - S::interior_margin + 1e-9,
+                              far_x - S::interior_margin - 1e-9,
+                              far_x - 0.2,
+                              far_x};
+    std::size_t placed = 0, near_lanes = 0;
+    for (std::size_t p = 0; p < n; p += 3, ++placed) {
+        const double at = near_at[placed % std::size(near_at)];
+        set.x[0][p] = std::min(at, far_x) * g.h;
+        // Every fourth of them next to a face on the second axis too.
+        if (placed % 4 == 0) set.x[1][p] = std::min(at, far_y) * g.h;
+    }
+    auto same_near = [&](const talus::StencilPack<D, S, N> &pack, std::size_t j, std::size_t p) {
+        using St = talus::Stencil<D, S>;
+        St st;
+        if (St::interior(g, set, p)) {
+            st.template eval<false, false>(g, set, p);
+        } else {
+            st.template eval<true, false>(g, set, p);
+            ++near_lanes;
+        }
+        for (int d = 0; d < D; ++d) {
+            ASSERT_EQ(pack.base[d][j], st.base[d]) << "particle " << p << " axis " << d;
+            for (int k = 0; k < W; ++k) {
+                ASSERT_EQ(pack.w[d][k][j], st.w[d][k]) << "particle " << p << " axis " << d;
+                ASSERT_EQ(pack.dw[d][k][j], st.dw[d][k]) << "particle " << p << " axis " << d;
+            }
+        }
+    };
+    for (std::size_t first = 0; first + N <= n; first += N) {
+        ASSERT_TRUE(pk.template eval<false>(g, set, &index[first]));
+        for (std::size_t j = 0; j < N; ++j)
+            same_near(pk, j, index[first + j]);
+        ASSERT_TRUE(pk.template eval_run<false>(g, set, first));
+        for (std::size_t j = 0; j < N; ++j)
+            same_near(pk, j, first + j);
+    }
+    // Every particle met twice (eval and eval_run); of the nine positions
+    // seven are near a face (the margin itself and 1e-9 inside the far one
+    // are interior), so a sixth of the particles or more are near ones.
+    std::size_t near_particles = 0;
+    for (std::size_t p = 0; p < n; ++p)
+        near_particles += talus::Stencil<D, S>::interior(g, set, p) ? 0 : 1;
+    EXPECT_EQ(near_lanes, 2 * near_particles);
+    EXPECT_GE(near_particles, n / 6) << "the near-face lanes were compared";
 }
 
 template <int D, class S>
