@@ -35,6 +35,21 @@ Boundary::Boundary(const Scenario &sc, const Conditions &c, const Grid &grid, do
         fixities_.push_back(pv.velocity);
 }
 
+SlotBox Boundary::untouched(const Grid &grid) const {
+    SlotBox b = grid.active();
+    for (std::size_t f = 0; f < 6; ++f) {
+        const SlotBox &layer = grid.face_nodes[f];
+        if (faces_[f].type == FaceType::free || layer.empty()) continue;
+        const std::size_t axis = f / 2;
+        // Grid: a face's layer spans the held nodes on its other axes.
+        if (f % 2 == 0)
+            b.lo[axis] = std::max(b.lo[axis], layer.hi[axis]);
+        else
+            b.hi[axis] = std::min(b.hi[axis], layer.lo[axis]);
+    }
+    return b.empty() ? SlotBox{} : b;
+}
+
 // Contact (slip, friction) is unilateral: a node moving away from the wall
 // is left alone; one moving into it loses its normal velocity and, with
 // Coulomb friction, its tangential speed is reduced by mu times the normal

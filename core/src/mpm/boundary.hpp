@@ -33,6 +33,15 @@ class Boundary {
     // which fixities reach a node.
     void apply(const Grid &grid, double *field, std::size_t offset, const double *fixity,
                double t) const;
+    // Whether the faces carry all the conditions (no prescribed velocities,
+    // no particle fixities): for_each_constrained_node then visits every
+    // node a condition reads or changes.
+    bool faces_only() const { return prescribed_.empty() && fixities_.empty(); }
+    // With faces_only(), the nodes of the active box no condition reads or
+    // changes: the box less the layers of the faces that carry a condition
+    // (a box again, as those layers are its ends). With
+    // for_each_constrained_node they make up the active box.
+    SlotBox untouched(const Grid &grid) const;
     // Calls f(slot) for every node of the active box a face condition or a
     // prescribed velocity may change (fixity nodes excluded), some more
     // than once.

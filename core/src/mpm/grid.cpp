@@ -116,12 +116,16 @@ void Grid::reset(const SlotBox &active) {
     // every step.
     const SlotBox w = written_;
     const std::size_t len = node::kRecord * w.row_length();
-    par::for_each(w.rows(), [&](std::size_t r) {
-        std::fill_n(acc.begin() +
-                        static_cast<std::ptrdiff_t>(node::kRecord * w.row_begin(r, geo.extent)),
-                    len, 0.0);
-    });
+    // Nothing to clear after a grid update that cleared them: no parallel
+    // region either (a barrier less a step).
+    if (!w.empty())
+        par::for_each(w.rows(), [&](std::size_t r) {
+            std::fill_n(acc.begin() +
+                            static_cast<std::ptrdiff_t>(node::kRecord * w.row_begin(r, geo.extent)),
+                        len, 0.0);
+        });
     active_ = written_ = active;
+    mass_copied_ = false;
 }
 
 void Grid::clear_momentum() {
@@ -134,7 +138,7 @@ void Grid::clear_momentum() {
 double Grid::mass() const {
     double m = 0.0;
     for (std::size_t i = 0; i < n_nodes; ++i)
-        m += acc[node::kRecord * i + node::kMass];
+        m += node_mass(i);
     return m;
 }
 

@@ -34,6 +34,10 @@ inline constexpr std::size_t kMass = 0, kMomentum = 1, kForce = 4, kFixity = 7;
 // the 2D G2P reads nothing else.
 inline constexpr std::size_t kEndVelocity = 0;
 constexpr std::size_t velocity(int dim) { return dim == 2 ? 2 : 4; }
+// A slot no kernel reads (3D: v~ 0-2, v 4-6; 2D: 0-3): where a grid
+// update that clears the accumulators leaves the node's mass
+// (Grid::accumulators_cleared).
+inline constexpr std::size_t kMassCopy = 7;
 } // namespace node
 
 // What a kernel needs to find a particle's nodes: plain values, copied
@@ -119,6 +123,16 @@ struct SlotBox {
         }
         return b;
     }
+    // Row r (r < rows()) as a box of one row.
+    SlotBox row(std::size_t r) const {
+        const int n1 = hi[1] - lo[1];
+        SlotBox b = *this;
+        b.lo[1] = lo[1] + static_cast<int>(r) % n1;
+        b.lo[2] = lo[2] + static_cast<int>(r) / n1;
+        b.hi[1] = b.lo[1] + 1;
+        b.hi[2] = b.lo[2] + 1;
+        return b;
+    }
     // The first slot of row r (r < rows()) of a grid of `extent` nodes.
     std::size_t row_begin(std::size_t r, const std::array<int, 3> &extent) const {
         const std::size_t n1 = static_cast<std::size_t>(hi[1] - lo[1]);
@@ -174,13 +188,22 @@ struct Grid {
     SlotBox all() const;
     // Clears the P2G accumulators for a step whose particles reach
     // `active`: where the last step's did (every node before the first
-    // step), so that they are zero everywhere. The step's kernels then work
+    // step), unless its grid update cleared them already
+    // (accumulators_cleared), so that they are zero everywhere. The step's kernels then work
     // within the active box alone (active()): the P2G sums land there, the
     // grid update writes the velocities there and nowhere else. Outside it
     // Grid::vel is left as it was and is not read (a particle reads only the
     // nodes of its stencil).
     void reset(const SlotBox &active);
     void reset() { reset(all()); }
+    // Told by a grid update that used the accumulators last in its step
+    // and cleared them in the active box while it read them, leaving each
+    // node's mass in vel[node::kMassCopy]: the next reset has nothing left
+    // to clear.
+    void accumulators_cleared() {
+        written_ = SlotBox{};
+        mass_copied_ = true;
+    }
     const SlotBox &active() const { return active_; }
     // f(slot) for every node of the active box, its rows in parallel (the
     // grid update, the fixities' grid side).
@@ -198,7 +221,16 @@ struct Grid {
     }
     // Clears the momentum slots alone (before MUSL's remap), in the active box.
     void clear_momentum();
-    // Total nodal mass.
+    // A node's mass from the last P2G: in the accumulators, or where the
+    // grid update copied it before clearing them.
+    double node_mass(std::size_t slot) const {
+        const double m = acc[node::kRecord * slot + node::kMass];
+        return mass_copied_ && active_.contains(local(slot))
+                   ? m + vel[node::kRecord * slot + node::kMassCopy]
+                   : m;
+    }
+    // Total nodal mass, summed over every node (any accumulator left
+    // non-zero outside the active box shows in it).
     double mass() const;
     // Position of a node's Greville point, the point it stands for (the
     // clamped B-splines' nodes near a face sit between lattice points).
@@ -209,6 +241,7 @@ struct Grid {
     // accumulators may be non-zero in (the last active box; every node
     // until the first reset).
     SlotBox active_, written_;
+    bool mass_copied_ = false;
 };
 
 } // namespace talus

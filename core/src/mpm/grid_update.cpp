@@ -2,6 +2,7 @@
 
 #include "parallel.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace talus {
@@ -13,15 +14,16 @@ namespace {
 // D a constant: the node's component loop unrolled (with the dimension
 // read at run time it stayed a loop per node).
 template <int D, bool Update, DampingKind Damping>
-void velocities_in(Grid &grid, const Boundary &bc, double t, double dt, double alpha) {
+void velocities_in(Grid &grid, const Boundary &bc, double t, double dt, double alpha, bool clear) {
     double *a = grid.acc.data(), *v = grid.vel.data();
     const std::size_t vs = node::velocity(D), ve = node::kEndVelocity;
+    clear = clear && bc.faces_only();
     // v = p / m everywhere and, when updating, v~ = v + dt f / m in the same
     // pass; the constrained nodes are then redone in order (conditions on v,
     // v~ from the constrained v, conditions on v~), which matters for
     // friction, where v~'s approach speed depends on the constrained v.
     // Over the active box alone (Grid::reset): elsewhere no particle reads.
-    grid.for_each_active_node([&](std::size_t i) {
+    auto update = [&](std::size_t i) {
         const double m = a[kRecord * i + node::kMass];
         const double inv = m > 0.0 ? 1.0 / m : 0.0;
         for (std::size_t d = 0; d < static_cast<std::size_t>(D); ++d) {
@@ -39,6 +41,28 @@ void velocities_in(Grid &grid, const Boundary &bc, double t, double dt, double a
                 v[kRecord * i + ve + d] = v0 + dt * f * inv;
             }
         }
+        if (clear) v[kRecord * i + node::kMassCopy] = m;
+    };
+    // With `clear`, the nodes no condition reads are cleared while their
+    // record is in cache, which spares the next step's reset its pass over
+    // the accumulators; the constrained ones once the conditions are done
+    // with them, below.
+    const SlotBox &box = grid.active();
+    const SlotBox untouched = clear ? bc.untouched(grid) : SlotBox{};
+    const std::size_t lo = static_cast<std::size_t>(box.lo[0]);
+    par::for_each(box.rows(), [&](std::size_t r) {
+        const std::size_t first = box.row_begin(r, grid.geo.extent), n = box.row_length();
+        const SlotBox cut = box.row(r).cut(untouched);
+        const std::size_t c0 = cut.empty() ? n : static_cast<std::size_t>(cut.lo[0]) - lo,
+                          c1 = cut.empty() ? n : static_cast<std::size_t>(cut.hi[0]) - lo;
+        for (std::size_t i = first; i < first + c0; ++i)
+            update(i);
+        for (std::size_t i = first + c0; i < first + c1; ++i) {
+            update(i);
+            std::fill_n(a + kRecord * i, kRecord, 0.0);
+        }
+        for (std::size_t i = first + c1; i < first + n; ++i)
+            update(i);
     });
     bc.apply(grid, v, vs, a, t);
     if constexpr (!Update) return;
@@ -50,14 +74,19 @@ void velocities_in(Grid &grid, const Boundary &bc, double t, double dt, double a
                 v[kRecord * i + vs + d] + dt * a[kRecord * i + node::kForce + d] * inv;
     });
     bc.apply(grid, v, ve, a, t + dt);
+    if (!clear) return;
+    bc.for_each_constrained_node(
+        grid, [&](std::size_t i) { std::fill_n(a + kRecord * i, kRecord, 0.0); });
+    grid.accumulators_cleared();
 }
 
 template <bool Update, DampingKind Damping = DampingKind::none>
-void velocities(Grid &grid, const Boundary &bc, double t, double dt, double alpha = 0.0) {
+void velocities(Grid &grid, const Boundary &bc, double t, double dt, double alpha = 0.0,
+                bool clear = false) {
     if (grid.geo.dim == 2)
-        velocities_in<2, Update, Damping>(grid, bc, t, dt, alpha);
+        velocities_in<2, Update, Damping>(grid, bc, t, dt, alpha, clear);
     else
-        velocities_in<3, Update, Damping>(grid, bc, t, dt, alpha);
+        velocities_in<3, Update, Damping>(grid, bc, t, dt, alpha, clear);
 }
 
 } // namespace
@@ -66,15 +95,17 @@ void grid_velocity(Grid &grid, const Boundary &bc, double t) {
     velocities<false>(grid, bc, t, 0.0);
 }
 
-void grid_update(Grid &grid, const Boundary &bc, double t, double dt, const DampingSpec &damping) {
+void grid_update(Grid &grid, const Boundary &bc, double t, double dt, const DampingSpec &damping,
+                 Accumulators after) {
+    const bool clear = after == Accumulators::clear;
     switch (damping.kind) {
     case DampingKind::local:
-        velocities<true, DampingKind::local>(grid, bc, t, dt, damping.coefficient);
+        velocities<true, DampingKind::local>(grid, bc, t, dt, damping.coefficient, clear);
         break;
     case DampingKind::viscous:
-        velocities<true, DampingKind::viscous>(grid, bc, t, dt, damping.coefficient);
+        velocities<true, DampingKind::viscous>(grid, bc, t, dt, damping.coefficient, clear);
         break;
-    default: velocities<true>(grid, bc, t, dt); break;
+    default: velocities<true>(grid, bc, t, dt, 0.0, clear); break;
     }
 }
 

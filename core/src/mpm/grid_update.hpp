@@ -15,8 +15,14 @@ void grid_velocity(Grid &grid, const Boundary &bc, double t);
 // t + dt into Grid::vel[node::kEndVelocity].
 // With `damping`, the nodal force is damped first (DampingSpec), from the
 // velocity v at t.
+// With Accumulators::clear (a scheme whose step reads Grid::acc no more),
+// the accumulators are cleared as they are read, each node's mass kept in
+// Grid::vel[node::kMassCopy] (Grid::accumulators_cleared); they stay as
+// they are with prescribed velocities or particle fixities, whose nodes
+// the pass cannot tell apart.
+enum class Accumulators { keep, clear };
 void grid_update(Grid &grid, const Boundary &bc, double t, double dt,
-                 const DampingSpec &damping = {});
+                 const DampingSpec &damping = {}, Accumulators after = Accumulators::keep);
 // MUSL: the remapped velocity v_R = p_R / m with the conditions at t_end,
 // written over the force slots of Grid::acc (free after the grid update),
 // and with `mean` also (v + v_R) / 2 over the momentum slots (for the

@@ -55,9 +55,9 @@ void Simulation::Impl::grid_velocity(double t) {
     talus::grid_velocity(grid, boundary, t);
 }
 
-void Simulation::Impl::grid_update(double t, double dt) {
+void Simulation::Impl::grid_update(double t, double dt, Accumulators after) {
     auto tm = timer(Phase::grid_update);
-    talus::grid_update(grid, boundary, t, dt, conditions().damping);
+    talus::grid_update(grid, boundary, t, dt, conditions().damping, after);
 }
 
 void Simulation::Impl::remapped_velocity(double t_end) {

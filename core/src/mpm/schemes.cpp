@@ -2,7 +2,9 @@
 // updated within a step, and which grid velocity moves the particles and
 // advances F ("Kinematic consistency"). Each is the seed's four phases in
 // its own order: P2G, grid update, G2P (velocity, kinematics, material
-// update), and the step's end.
+// update), and the step's end. A grid update after which the step reads
+// the accumulators no more clears them as it goes (Accumulators::clear):
+// all but MUSL's, whose remap maps onto the masses again.
 #include "simulation_state.hpp"
 
 namespace talus {
@@ -13,7 +15,7 @@ using node::kForce, node::kMomentum;
 // (v + v~) / 2 at second order).
 void Simulation::Impl::usl(double t, double dt) {
     p2g_momentum_and_forces();
-    grid_update(t, dt);
+    grid_update(t, dt, Accumulators::clear);
     g2p_velocity(dt, /*store_gradient=*/true);
     material_update(t, dt);
     move_particles(PositionStep::add_dx);
@@ -24,7 +26,7 @@ void Simulation::Impl::usl(double t, double dt) {
 // no stored gradient, no position step, two passes over the particles less.
 void Simulation::Impl::usl_fused(double t, double dt) {
     p2g_momentum_and_forces();
-    grid_update(t, dt);
+    grid_update(t, dt, Accumulators::clear);
     g2p_velocity_and_update(t, dt);
 }
 
@@ -37,7 +39,7 @@ void Simulation::Impl::usf(double t, double dt) {
     g2p_gradient(grid.vel.data(), v, v, dt);
     material_update(t, dt);
     p2g_forces();
-    grid_update(t, dt);
+    grid_update(t, dt, Accumulators::clear);
     g2p_velocity(dt, /*store_gradient=*/false);
     move_particles(PositionStep::add_dx);
 }
@@ -66,7 +68,7 @@ void Simulation::Impl::usavg(double t, double dt) {
     g2p_gradient(grid.vel.data(), node::velocity(grid.geo.dim), 0, 0.0);
     material_update(t, 0.5 * dt);
     p2g_forces();
-    grid_update(t, dt);
+    grid_update(t, dt, Accumulators::clear);
     g2p_velocity(dt, /*store_gradient=*/true);
     material_update(t + 0.5 * dt, 0.5 * dt);
     move_particles(PositionStep::add_dx);

@@ -362,8 +362,7 @@ double Simulation::grid_mass() const {
     // Each node once: on the rank that owns it.
     double m = 0.0;
     for (std::size_t i = 0; i < g.grid.n_nodes; ++i)
-        if (g.decomp.node_owner(g.grid.geo.global(i)) == g.comm.rank())
-            m += g.grid.acc[node::kRecord * i + node::kMass];
+        if (g.decomp.node_owner(g.grid.geo.global(i)) == g.comm.rank()) m += g.grid.node_mass(i);
     return g.comm.sum(m);
 }
 std::size_t Simulation::active_nodes() const { return impl_->grid.active().nodes(); }

@@ -9,6 +9,7 @@
 #include "decomposition.hpp"
 #include "g2p.hpp"
 #include "grid.hpp"
+#include "grid_update.hpp"
 #include "halo.hpp"
 #include "kinematics.hpp"
 #include "loads.hpp"
@@ -124,7 +125,9 @@ struct Simulation::Impl {
     void p2g_momentum_and_forces();
     void p2g_remap();
     void grid_velocity(double t);
-    void grid_update(double t, double dt);
+    // `after`: Accumulators::clear where the scheme's step reads Grid::acc
+    // no more (grid_update.hpp).
+    void grid_update(double t, double dt, Accumulators after = Accumulators::keep);
     void remapped_velocity(double t_end);
     void g2p_velocity(double dt, bool store_gradient);
     // Fused USL: G2P, kinematics, material update and the step's end, block

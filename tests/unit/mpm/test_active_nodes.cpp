@@ -7,7 +7,9 @@
 // give the same bits, in every scheme, shape and condition that writes to
 // the grid; each run must also have worked on far fewer nodes than the
 // grid holds, or the comparison would show nothing.
+#include "boundary.hpp"
 #include "grid.hpp"
+#include "grid_update.hpp"
 #include "solver_helpers.hpp"
 
 #include <talus/mpm/shape_functions.hpp>
@@ -21,6 +23,7 @@
 #include <functional>
 #include <limits>
 #include <memory>
+#include <random>
 #include <string>
 
 namespace {
@@ -89,6 +92,92 @@ TEST(ActiveNodes, ResetClearsWhereTheLastStepWrote) {
     grid.reset(b);
     EXPECT_TRUE(std::all_of(grid.acc.begin(), grid.acc.end(), [](double v) { return v == 0.0; }));
     EXPECT_EQ(grid.active().nodes(), b.nodes());
+}
+
+// A grid update after which the step reads the accumulators no more
+// (Accumulators::clear) clears them as it reads them, so that the next
+// reset has nothing to do. The reference is the same update keeping them:
+// the velocities must come out the same bits (a node cleared before a
+// condition read its mass or force would differ), the accumulators must be
+// zero everywhere afterwards and each node's mass found where the update
+// left it. With prescribed velocities or fixities the pass cannot tell
+// their nodes, and must leave the accumulators as they are.
+void expect_clearing_update_as_keeping(const std::string &conditions, int dim, bool faces_only,
+                                       const talus::DampingSpec &damping = {}) {
+    SCOPED_TRACE(conditions);
+    const std::string yaml =
+        "talus: 1\ndimension: " + std::to_string(dim) + "\n" +
+        (dim == 2 ? "grid: {origin: [0, 0], size: [1, 0.6], cell: 0.05}\n"
+                  : "grid: {origin: [0, 0, 0], size: [0.5, 0.4, 0.3], cell: 0.05}\n") +
+        "materials:\n  m: {model: linear_elastic, density: 1000, youngs_modulus: 1.0e4, "
+        "poisson_ratio: 0.3}\n"
+        "groups:\n  a: {material: m, shape: {box: {min: [0.1, 0.1" +
+        (dim == 3 ? ", 0.1" : "") + "], max: [0.3, 0.3" + (dim == 3 ? ", 0.2" : "") + "]}}}\n" +
+        conditions + "time: {end: 1}\n";
+    talus::PluginRegistry registry;
+    const talus::Scenario sc =
+        talus::read_scenario(talus::yaml::load_string(yaml, "t.yaml"), registry);
+    talus::Grid grid(dim, sc.origin, sc.size, sc.cell, sc.solver.shape);
+    const talus::Boundary bc(sc, sc.conditions, grid, 0.0);
+    ASSERT_EQ(bc.faces_only(), faces_only);
+    const int last = dim == 2 ? 19 : 9;
+    // The whole grid (every face layer), a box on the low faces, one inside.
+    for (const talus::SlotBox &box :
+         {grid.all(), grid.reach({0, 0, 0}, {4, 3, dim == 3 ? 2 : 0}),
+          grid.reach({4, 4, dim == 3 ? 2 : 0}, {last - 4, 6, dim == 3 ? 3 : 0})}) {
+        grid.reset(box);
+        std::mt19937 rng(7);
+        std::uniform_real_distribution<double> u(-1.0, 1.0);
+        box.for_each_slot(grid.geo.extent, [&](std::size_t i) {
+            double *a = &grid.acc[talus::node::kRecord * i];
+            for (std::size_t f = 0; f < talus::node::kRecord; ++f)
+                a[f] = u(rng);
+            // A node no particle weighs on may still carry a gradient's force.
+            a[talus::node::kMass] =
+                a[talus::node::kMass] < -0.5 ? 0.0 : 1.0 + a[talus::node::kMass];
+            // Fixity bits as a P2G leaves them: none without fixities.
+            a[talus::node::kFixity] = faces_only ? 0.0 : static_cast<double>(i % 4);
+        });
+        talus::Grid keep = grid;
+        talus::grid_update(keep, bc, 0.1, 1e-3, damping, talus::Accumulators::keep);
+        talus::grid_update(grid, bc, 0.1, 1e-3, damping, talus::Accumulators::clear);
+        const std::size_t vs = talus::node::velocity(dim);
+        std::size_t differ = 0;
+        box.for_each_slot(grid.geo.extent, [&](std::size_t i) {
+            for (std::size_t d = 0; d < static_cast<std::size_t>(dim); ++d)
+                for (std::size_t at : {talus::node::kEndVelocity + d, vs + d}) {
+                    const std::size_t k = talus::node::kRecord * i + at;
+                    differ += grid.vel[k] != keep.vel[k];
+                }
+        });
+        EXPECT_EQ(differ, 0u);
+        for (std::size_t i = 0; i < grid.n_nodes; ++i)
+            ASSERT_EQ(grid.node_mass(i), keep.acc[talus::node::kRecord * i + talus::node::kMass])
+                << "node " << i;
+        EXPECT_EQ(grid.mass(), keep.mass());
+        if (faces_only)
+            EXPECT_TRUE(
+                std::all_of(grid.acc.begin(), grid.acc.end(), [](double v) { return v == 0.0; }));
+        else
+            EXPECT_TRUE(grid.acc == keep.acc);
+    }
+}
+
+TEST(ActiveNodes, AClearingGridUpdateGivesTheSameVelocities) {
+    expect_clearing_update_as_keeping("", 2, true);
+    expect_clearing_update_as_keeping("boundaries: {x-: fixed, x+: slip, y-: {friction: 0.3}}\n", 2,
+                                      true, {talus::DampingKind::local, 0.1});
+    expect_clearing_update_as_keeping(
+        "boundaries: {x-: slip, x+: fixed, y-: {friction: 0.5}, y+: slip, z-: fixed, z+: "
+        "{friction: 0.2}}\nsolver: {shape: bspline3}\n",
+        3, true, {talus::DampingKind::viscous, 2.0});
+    expect_clearing_update_as_keeping(
+        "boundaries: {y-: fixed}\nsolver: {shape: linear}\n"
+        "nodal_velocities: [{box: {min: [0.6, 0.2], max: [0.7, 0.3]}, velocity: {x: 1.0}}]\n",
+        2, false);
+    expect_clearing_update_as_keeping(
+        "boundaries: {y-: fixed}\nparticle_velocities:\n  - {group: a, velocity: {y: 0.2}}\n", 2,
+        false);
 }
 
 struct Run {
