@@ -36,6 +36,22 @@ namespace {
     }
 }
 
+// The lines a pack of particles from p on reads and writes first in the
+// fused pass (positions, velocities, the fixity mask; one line of each
+// column holds 8 of them), asked for kMotionPacksAhead packs ahead. With
+// the material block's columns the pass runs more than a dozen streams,
+// more than the hardware's prefetch keeps up with once a second thread (or
+// another tenant of the host) loads the memory: docs/performance.md, "On
+// an AMD EPYC (Zen 5)".
+inline constexpr std::size_t kMotionPacksAhead = 2;
+[[gnu::always_inline]] inline void prefetch_motion(const ParticleSet &s, std::size_t p) {
+    for (int d = 0; d < s.dim; ++d) {
+        __builtin_prefetch(&s.x[static_cast<std::size_t>(d)][p], 1, 3);
+        __builtin_prefetch(&s.v[static_cast<std::size_t>(d)][p], 1, 3);
+    }
+    __builtin_prefetch(&s.fix_mask[p], 0, 3);
+}
+
 // The particles [begin, end) of one set (g2p_motion_pass).
 template <int D, class S, class T, bool StoreGradient, bool Kinematics>
 struct G2pMotionKernel {
@@ -250,6 +266,11 @@ struct G2pMotionKernel {
                 constexpr std::size_t N = kPointLanes<I>;
                 StencilPack<D, S, static_cast<int>(N)> pack;
                 for (; end - p >= N; p += N) {
+                    // Within the chunk (the lines past it are another
+                    // thread's to write).
+                    if constexpr (Kinematics)
+                        if (args.end - p >= (kMotionPacksAhead + 1) * N)
+                            prefetch_motion(s, p + kMotionPacksAhead * N);
                     if (pack.template eval_run<T::moments>(g, s, p)) [[likely]] {
                         finish_pack(pack, p);
                     } else {
