@@ -135,11 +135,10 @@ struct SlotBox {
     }
     // The first slot of row r (r < rows()) of a grid of `extent` nodes.
     std::size_t row_begin(std::size_t r, const std::array<int, 3> &extent) const {
-        const std::size_t n1 = static_cast<std::size_t>(hi[1] - lo[1]);
-        const std::size_t j = static_cast<std::size_t>(lo[1]) + r % n1;
-        const std::size_t k = static_cast<std::size_t>(lo[2]) + r / n1;
-        return static_cast<std::size_t>(lo[0]) +
-               static_cast<std::size_t>(extent[0]) * (j + static_cast<std::size_t>(extent[1]) * k);
+        const SlotBox b = row(r);
+        const auto at = [&](std::size_t d) { return static_cast<std::size_t>(b.lo[d]); };
+        return at(0) + static_cast<std::size_t>(extent[0]) *
+                           (at(1) + static_cast<std::size_t>(extent[1]) * at(2));
     }
     // f(slot) for the slots of row r, ascending.
     template <class F>
