@@ -32,7 +32,9 @@ namespace {
 constexpr const char *kFormat = "talus checkpoint";
 // 2: a run on several ranks writes one file per rank (the rank and every
 // rank's cell box in each). A format-1 file is one rank's and reads as one.
-constexpr long kFormatVersion = 2;
+// 3: in plane strain a particle's F is its in-plane block, 4 values
+// (ParticleSet::F); the 9 of formats 1 and 2 still read.
+constexpr long kFormatVersion = 3;
 
 // An HDF5 handle, closed by its own close function.
 class Handle {

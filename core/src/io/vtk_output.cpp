@@ -135,8 +135,10 @@ void write_vtu(const fs::path &file, const Simulation &sim,
             jj.put<double>(s.J[p]);
             rho.put<double>(s.mass[p] / (s.J[p] * s.vol0[p]));
             mass.put<double>(s.mass[p]);
-            for (int a = 0; a < 9; ++a) // row-major, as VTK reads a 3x3 tensor
-                F.put<double>(s.F[9 * p + static_cast<std::size_t>(a)]);
+            double Fp[9];
+            s.F_of(p, Fp);
+            for (double f : Fp) // row-major, as VTK reads a 3x3 tensor
+                F.put<double>(f);
             for (std::size_t f = 0; f < sf.size(); ++f) {
                 const StateInfo *in = info[f];
                 for (std::uint32_t k = 0; k < sf[f].size; ++k)

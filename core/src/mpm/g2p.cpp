@@ -25,7 +25,7 @@ namespace {
             __builtin_prefetch(a + k, 1, 3);
         __builtin_prefetch(a + n - 1, 1, 3);
     };
-    lines(&s.F[9 * p], 9);
+    lines(&s.F[s.F_size() * p], s.F_size());
     lines(&s.stress[6 * p], 6);
     if (s.state_size) lines(&s.state[s.state_size * p], s.state_size);
     if (p % 8 == 0) {

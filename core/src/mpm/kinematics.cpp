@@ -60,7 +60,7 @@ template <int D, bool Rotate>
                                              const Gradients &Lg, double dt,
                                              const BlockIncrement &out, double *divv) {
     double F0[9], L[9], F1[9];
-    std::memcpy(F0, &s.F[9 * p], sizeof F0);
+    s.F_of(p, F0);
     std::memcpy(out.F_start + 9 * k, F0, sizeof F0);
     Lg.copy(k, L);
     double J;
@@ -68,7 +68,8 @@ template <int D, bool Rotate>
     s.J[p] = J;
     if (!(J > 0.0)) [[unlikely]]
         return false;
-    std::memcpy(&s.F[9 * p], F1, sizeof F1);
+    s.set_F(p, F1);
+    if constexpr (D == 2) std::memcpy(out.F_end + 9 * k, F1, sizeof F1);
     out.rho[k] = s.rho0 / J;
     double *de = out.de + 6 * k;
     de[0] = dt * L[0];
@@ -129,13 +130,22 @@ template <int N, int D, bool Rotate>
         else
             for (std::size_t c = 0; c < 9; ++c)
                 load_lanes<N>(Lk + c * L.component, L.point, Lv[c]);
-        load_points_copying<N>(&s.F[9 * p], out.F_start + 9 * k, F0);
+        const V zero{}, one = zero + 1.0;
+        if constexpr (D == 3) {
+            load_points_copying<N>(&s.F[9 * p], out.F_start + 9 * k, F0);
+        } else { // the in-plane block, whole for the model (ParticleSet::F)
+            V f[4];
+            load_points<N>(&s.F[4 * p], f);
+            F0[0] = f[0], F0[1] = f[1], F0[3] = f[2], F0[4] = f[3];
+            F0[2] = F0[5] = F0[6] = F0[7] = zero;
+            F0[8] = one;
+            store_points<N>(out.F_start + 9 * k, F0);
+        }
         V J;
         deformation<D>(F0, Lv, dt, F1, J);
         // An inverted point (J <= 0 or NaN), or (plane strain, rotated
         // stress) a spin off the plane: the pack goes point by point. Lanes
         // of ones where one holds (lanes.hpp, any_lane).
-        const V zero{}, one = zero + 1.0;
         V odd = J > zero ? zero : one;
         if constexpr (Rotate && D == 2)
             for (int c : {2, 5, 6, 7})
@@ -153,7 +163,13 @@ template <int N, int D, bool Rotate>
         std::memcpy(&s.J[p], &J, sizeof J);
         const V rho = rho0 / J;
         std::memcpy(out.rho + k, &rho, sizeof rho);
-        store_points<N>(&s.F[9 * p], F1); // over F0, copied to out.F_start
+        if constexpr (D == 3) {
+            store_points<N>(&s.F[9 * p], F1); // over F0, copied to out.F_start
+        } else {
+            const V f[4] = {F1[0], F1[1], F1[3], F1[4]};
+            store_points<N>(&s.F[4 * p], f);
+            store_points<N>(out.F_end + 9 * k, F1);
+        }
         const V de[6] = {dt * Lv[0],           dt * Lv[4],           dt * Lv[8],
                          dt * (Lv[1] + Lv[3]), dt * (Lv[5] + Lv[7]), dt * (Lv[2] + Lv[6])};
         store_points<N>(out.de + 6 * k, de);
@@ -281,7 +297,7 @@ std::optional<Inversion> dilation_sums(std::vector<ParticleSet> &sets, const Gri
         ParticleSet &s = sets[si];
         par::for_each(s.n, [&](std::size_t p) {
             double F0[9], L[9], F_end[9];
-            std::memcpy(F0, &s.F[9 * p], sizeof F0);
+            s.F_of(p, F0);
             std::memcpy(L, &s.L[9 * p], sizeof L);
             // The arithmetic of kinematics_block, which recomputes J: both
             // see the same value.

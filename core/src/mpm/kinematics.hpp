@@ -38,6 +38,10 @@ struct BlockIncrement {
     // points done: the copy is taken as each pack is loaded) is what a
     // retry (cut step) or a failed step's restore starts from.
     double *F_start;
+    // Plane strain: F at the end, 9 per point, for the model (the particle
+    // keeps only F's in-plane block, ParticleSet::F). In 3D null: the
+    // model reads the particle's F.
+    double *F_end;
     // The start stress as the model gets it, 6 per point (Voigt): turned by
     // the increment's rotation for strain-increment models, as it was for
     // finite-strain ones. The particle's stress is left alone: the model
@@ -84,7 +88,8 @@ struct Gradients {
 
 // Points [begin, begin + count) of s from their velocity gradients L
 // (Gradients): F at the end of the step (eq. 39, in
-// the particle, the start F copied to out.F_start as it is read), J
+// the particle and in plane strain in out.F_end, the start F copied to
+// out.F_start as it is read), J
 // (kept in the particle), rho (eq. 41), the strain increment (eq. 42), div
 // v, the start stress as the model gets it (out.stress_start: for
 // strain-increment models objectively rotated, Hughes-Winget), and the

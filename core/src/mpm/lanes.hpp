@@ -103,9 +103,10 @@ template <int N>
 // transpose. Element by element (load_lanes) a lane costs an insert or an
 // extract on the one shuffle port besides its load or store; for the
 // kinematics' 24 components a point that was about two thirds of its time
-// (measured with the transposes made free). With 8 lanes and 6 or 9
+// (measured with the transposes made free). With 8 lanes and 4, 6 or 9
 // components the transposes below take whole-vector loads and stores and
-// 18 (C = 6) or about 40 (C = 9) two-vector shuffles for 8 points. The
+// 8 (C = 4), 18 (C = 6) or about 40 (C = 9) two-vector shuffles for 8
+// points. The
 // values are only moved: the results are the same bits either way.
 namespace lanes_detail {
 #if TALUS_HAS_SHUFFLEVECTOR
@@ -235,6 +236,29 @@ using V8 = Lanes<8>::V;
                      : __builtin_shufflevector(a, b, 4, 5, 6, 7, 12, 13, 14, 15);
     }
 }
+// C = 4 (plane strain's F): v[j] holds points 2j and 2j + 1. Pairs of
+// vectors give (A0 B0 C0 D0 A1 B1 C1 D1) and the like, whose halves then
+// make the components: eight two-vector shuffles each way.
+[[gnu::always_inline]] inline void aos4_to_lanes(const V8 (&v)[4], V8 (&c)[4]) {
+    const V8 t0 = __builtin_shufflevector(v[0], v[1], 0, 4, 8, 12, 1, 5, 9, 13);
+    const V8 t1 = __builtin_shufflevector(v[0], v[1], 2, 6, 10, 14, 3, 7, 11, 15);
+    const V8 t2 = __builtin_shufflevector(v[2], v[3], 0, 4, 8, 12, 1, 5, 9, 13);
+    const V8 t3 = __builtin_shufflevector(v[2], v[3], 2, 6, 10, 14, 3, 7, 11, 15);
+    c[0] = __builtin_shufflevector(t0, t2, 0, 1, 2, 3, 8, 9, 10, 11);
+    c[1] = __builtin_shufflevector(t0, t2, 4, 5, 6, 7, 12, 13, 14, 15);
+    c[2] = __builtin_shufflevector(t1, t3, 0, 1, 2, 3, 8, 9, 10, 11);
+    c[3] = __builtin_shufflevector(t1, t3, 4, 5, 6, 7, 12, 13, 14, 15);
+}
+[[gnu::always_inline]] inline void lanes_to_aos4(const V8 (&c)[4], V8 (&v)[4]) {
+    const V8 t0 = __builtin_shufflevector(c[0], c[1], 0, 1, 2, 3, 8, 9, 10, 11);
+    const V8 t2 = __builtin_shufflevector(c[0], c[1], 4, 5, 6, 7, 12, 13, 14, 15);
+    const V8 t1 = __builtin_shufflevector(c[2], c[3], 0, 1, 2, 3, 8, 9, 10, 11);
+    const V8 t3 = __builtin_shufflevector(c[2], c[3], 4, 5, 6, 7, 12, 13, 14, 15);
+    v[0] = __builtin_shufflevector(t0, t1, 0, 4, 8, 12, 1, 5, 9, 13);
+    v[1] = __builtin_shufflevector(t0, t1, 2, 6, 10, 14, 3, 7, 11, 15);
+    v[2] = __builtin_shufflevector(t2, t3, 0, 4, 8, 12, 1, 5, 9, 13);
+    v[3] = __builtin_shufflevector(t2, t3, 2, 6, 10, 14, 3, 7, 11, 15);
+}
 #undef TALUS_UNPACK_LO
 #undef TALUS_UNPACK_HI
 #endif
@@ -247,13 +271,15 @@ namespace lanes_detail {
 template <int N, bool Copy, int C, class V>
 [[gnu::always_inline]] inline void load_points(const double *base, double *copy, V (&out)[C]) {
 #if TALUS_HAS_SHUFFLEVECTOR
-    if constexpr (N == 8 && (C == 6 || C == 9)) {
+    if constexpr (N == 8 && (C == 4 || C == 6 || C == 9)) {
         V v[C];
         for (int j = 0; j < C; ++j) {
             load_vector<8>(base + 8 * j, v[j]);
             if constexpr (Copy) store_vector<8>(copy + 8 * j, v[j]);
         }
-        if constexpr (C == 6)
+        if constexpr (C == 4)
+            aos4_to_lanes(v, out);
+        else if constexpr (C == 6)
             aos6_to_lanes(v, out);
         else
             aos9_to_lanes(v, out);
@@ -282,9 +308,11 @@ template <int N, int C, class V>
 template <int N, int C, class V>
 [[gnu::always_inline]] inline void store_points(double *base, const V (&in)[C]) {
 #if TALUS_HAS_SHUFFLEVECTOR
-    if constexpr (N == 8 && (C == 6 || C == 9)) {
+    if constexpr (N == 8 && (C == 4 || C == 6 || C == 9)) {
         V v[C];
-        if constexpr (C == 6)
+        if constexpr (C == 4)
+            lanes_detail::lanes_to_aos4(in, v);
+        else if constexpr (C == 6)
             lanes_detail::lanes_to_aos6(in, v);
         else
             lanes_detail::lanes_to_aos9(in, v);

@@ -39,6 +39,7 @@ void MaterialUpdate::prepare(const std::vector<ParticleSet> &sets) {
         if (scr.L.size() == 9 * B && scr.state.size() >= ns * B) continue;
         scr.L.assign(9 * B, 0.0);
         scr.F_start.resize(9 * B);
+        scr.F_end.resize(9 * B);
         scr.rotation.resize(9 * B);
         scr.length.assign(B, length_);
         scr.de.resize(6 * B);
@@ -93,15 +94,15 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
                            const Gradients &L, const Increment &inc, UpdateFailures &failures) {
     Scratch &scr = scratch_[static_cast<std::size_t>(par::thread_index())];
     bool finite = true;
-    const std::size_t done =
-        kinematics_block(s, begin, count, L, inc.dt,
-                         {scr.F_start.data(), scr.stress_start.data(), scr.de.data(),
-                          scr.rho.data(), scr.work_start.data(), &finite},
-                         isa_);
+    const std::size_t done = kinematics_block(
+        s, begin, count, L, inc.dt,
+        {scr.F_start.data(), s.dim == 2 ? scr.F_end.data() : nullptr, scr.stress_start.data(),
+         scr.de.data(), scr.rho.data(), scr.work_start.data(), &finite},
+        isa_);
     if (done < count) {
         // A failed step leaves the block's F as it found it (the
         // kinematics wrote F at the end over it).
-        std::copy_n(scr.F_start.data(), 9 * done, &s.F[9 * begin]);
+        restore_F(s, begin, done, scr.F_start.data());
         failures.inverted.record({set, begin + done});
         return;
     }
@@ -127,8 +128,8 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
         }
     const std::size_t ns = s.state_size;
     const Inputs in{scr.stress_start.data(), ns ? &s.state[ns * begin] : nullptr,
-                    scr.F_start.data(), &s.F[9 * begin], scr.de.data(), scr.rho.data(),
-                    s.wants_rotation ? scr.rotation.data() : nullptr,
+                    scr.F_start.data(), s.dim == 2 ? scr.F_end.data() : &s.F[9 * begin],
+                    scr.de.data(), scr.rho.data(), s.wants_rotation ? scr.rotation.data() : nullptr,
                     // Not on the set-up call, whose initial stress and state
                     // are the scenario's, nor where cell averaging changed
                     // the increment after the kinematics tested it.
@@ -146,7 +147,7 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
         // The step failed: the block's F and stress as the plugin found
         // them (the stress as turned for it, as the points before a
         // failure elsewhere keep it).
-        std::copy_n(scr.F_start.data(), 9 * count, &s.F[9 * begin]);
+        restore_F(s, begin, count, scr.F_start.data());
         std::copy_n(scr.stress_start.data(), 6 * count, &s.stress[6 * begin]);
         failures.material.record(failure);
         return;
@@ -155,6 +156,12 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
     // and the end stress on the increment; the first from the kinematics).
     stress_work_block(s, begin, count, scr.de.data(), scr.work_start.data(), isa_);
     if (ns) std::copy_n(scr.state.data(), ns * count, &s.state[ns * begin]);
+}
+
+void MaterialUpdate::restore_F(ParticleSet &s, std::size_t begin, std::size_t count,
+                               const double *F_start) {
+    for (std::size_t k = 0; k < count; ++k)
+        s.set_F(begin + k, F_start + 9 * k);
 }
 
 // Advances points [begin, begin + count) of set s over [t, t + dt] from

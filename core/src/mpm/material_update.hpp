@@ -130,13 +130,18 @@ class MaterialUpdate {
     struct Scratch {
         std::vector<double> L;                            // a fused G2P's gradients
         std::vector<double> F_start, de, rho, work_start; // the block's kinematics
-        std::vector<double> rotation;                     // its increment's rotations, when asked
-        std::vector<double> length;                       // the characteristic length, per point
-        std::vector<double> stress_start;                 // the start stress as the model gets it
-        std::vector<double> state;                        // the end state, before commit
+        std::vector<double> F_end;        // plane strain: the whole F at the end (ParticleSet::F)
+        std::vector<double> rotation;     // its increment's rotations, when asked
+        std::vector<double> length;       // the characteristic length, per point
+        std::vector<double> stress_start; // the start stress as the model gets it
+        std::vector<double> state;        // the end state, before commit
         std::deque<Level> levels; // grown at the end while deeper levels run: references hold
         long cuts = 0;
     };
+    // Puts back the F points [begin, begin + count) had at the start of
+    // the step (from the block's F_start) after a failed step.
+    static void restore_F(ParticleSet &s, std::size_t begin, std::size_t count,
+                          const double *F_start);
     bool advance(ParticleSet &s, std::size_t set, std::size_t begin, std::size_t count, double t,
                  double dt, long step, double fraction, std::size_t depth, const Inputs &in,
                  const Outputs &out, Scratch &scr, MaterialFailure &failure);

@@ -167,8 +167,8 @@ void place(const Scenario &sc, std::size_t gi, const Box &bb, const std::vector<
     s.vol0[p] = V0;
     s.mass[p] = s.rho0 * V0;
     if (s.has_lp) s.lp[p] = 0.5 / gs.particles_per_cell;
-    for (std::size_t a = 0; a < 9; a += 4)
-        s.F[9 * p + a] = 1.0;
+    static constexpr double identity[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    s.set_F(p, identity);
     s.J[p] = 1.0;
     initial_stress(sc, gs, bb, s.rho0, gravity, x.data(), &s.stress[6 * p]);
     std::copy(q_init.begin(), q_init.end(), s.state.data() + p * s.state_size);

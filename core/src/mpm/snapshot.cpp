@@ -25,6 +25,28 @@ constexpr Snapshot::Type type_of() {
     }
 }
 
+// A plane-strain F as checkpoint formats 1 and 2 stored it, the whole 3x3
+// (ParticleSet::F keeps the in-plane block): taken if the rest is what
+// plane strain leaves it, F_zz = 1 and the others 0, exactly.
+void full_plane_F(const Snapshot::Column &c, std::size_t si, ParticleSet &set) {
+    for (std::size_t p = 0; p < set.n; ++p) {
+        double F[9];
+        std::memcpy(F, c.bytes.data() + 9 * sizeof(double) * p, sizeof F);
+        for (int a : {2, 5, 6, 7, 8})
+            if (F[a] != (a == 8 ? 1.0 : 0.0))
+                throw Error(fmt::format(
+                    "the snapshot's particle set {} holds an F out of the plane at particle {} "
+                    "(component {} is {}, plane strain keeps {}): the checkpoint is damaged",
+                    si, set.id[p], a, F[a], a == 8 ? 1 : 0));
+        for (int a : {0, 1, 3, 4})
+            if (!std::isfinite(F[a]))
+                throw Error(fmt::format("the snapshot's particle set {} holds a non-finite value "
+                                        "({}) in 'F' of particle {}: the checkpoint is damaged",
+                                        si, F[a], set.id[p]));
+        set.set_F(p, F);
+    }
+}
+
 } // namespace
 
 Snapshot Simulation::snapshot() const {
@@ -94,6 +116,15 @@ void Simulation::Impl::restore_from(const Snapshot &snap) {
         std::size_t k = 0;
         set.for_each_named_column([&](const char *name, auto &col, std::size_t stride) {
             using T = typename std::decay_t<decltype(col)>::value_type;
+            if constexpr (std::is_same_v<T, double>)
+                if (set.dim == 2 && std::strcmp(name, "F") == 0 && k < in.columns.size() &&
+                    in.columns[k].name == name && in.columns[k].stride == 9 &&
+                    in.columns[k].type == Snapshot::Type::f64 &&
+                    in.columns[k].bytes.size() == in.n * 9 * sizeof(double)) {
+                    full_plane_F(in.columns[k], si, set);
+                    ++k;
+                    return;
+                }
             if (k >= in.columns.size() || in.columns[k].name != name ||
                 in.columns[k].type != type_of<T>() || in.columns[k].stride != stride ||
                 in.columns[k].bytes.size() != in.n * stride * sizeof(T))

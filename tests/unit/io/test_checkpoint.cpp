@@ -1,5 +1,6 @@
 // Checkpoints: a snapshot through an HDF5 file and back continues a run bit
-// for bit, across a stage change and a material switch; a checkpoint of
+// for bit, across a stage change and a material switch, and so does one
+// in the older layout of plane strain's F; a checkpoint of
 // other binaries is refused, naming the difference; a file that is not a
 // checkpoint is refused.
 #include "solver_helpers.hpp"
@@ -109,7 +110,7 @@ TEST(Checkpoint, ANonFiniteParticleValueIsRefused) {
     for (int k = 0; k < 5; ++k)
         first->sim->step(1.0);
     const talus::Snapshot good = first->sim->snapshot();
-    for (const char *column : {"state", "stress", "x"}) {
+    for (const char *column : {"state", "stress", "x", "F"}) {
         talus::Snapshot bad = good;
         std::vector<talus::Snapshot::Column> &cols = bad.sets.at(0).columns;
         const auto it =
@@ -128,6 +129,59 @@ TEST(Checkpoint, ANonFiniteParticleValueIsRefused) {
             const std::string msg = e.what();
             EXPECT_NE(msg.find(fmt::format("non-finite value (nan) in '{}' of particle {}", column,
                                            first->sim->sets()[0].id[particle])),
+                      std::string::npos)
+                << msg;
+        }
+    }
+}
+
+// Formats 1 and 2 kept a plane-strain particle's F whole, 9 values; now
+// it is the in-plane block (ParticleSet::F). Such a snapshot continues as
+// the run itself does, bit for bit, and one whose F leaves the plane
+// (F_zz not 1, or an out-of-plane shear) is refused as damaged.
+TEST(Checkpoint, APlaneStrainFOfNineValuesStillRestores) {
+    auto whole = talus::test::sim_from_text(kScenario);
+    for (int k = 0; k < 5; ++k)
+        whole->sim->step(1.0);
+    talus::Snapshot old = whole->sim->snapshot();
+    const std::int64_t third_id = whole->sim->sets()[0].id[3]; // the particle made wrong below
+    std::vector<talus::Snapshot::Column> &cols = old.sets.at(0).columns;
+    const auto F =
+        std::find_if(cols.begin(), cols.end(), [](const auto &c) { return c.name == "F"; });
+    ASSERT_NE(F, cols.end());
+    ASSERT_EQ(F->stride, 4u);
+    const std::size_t n = old.sets[0].n;
+    std::vector<double> in(4 * n), full(9 * n, 0.0);
+    std::memcpy(in.data(), F->bytes.data(), F->bytes.size());
+    for (std::size_t p = 0; p < n; ++p) {
+        const double *f = &in[4 * p];
+        double *g = &full[9 * p];
+        g[0] = f[0], g[1] = f[1], g[3] = f[2], g[4] = f[3], g[8] = 1.0;
+    }
+    F->stride = 9;
+    F->bytes.resize(full.size() * sizeof(double));
+    std::memcpy(F->bytes.data(), full.data(), F->bytes.size());
+    auto second = talus::test::sim_from_text(kScenario);
+    talus::Simulation resumed(second->scenario, {}, old);
+    for (int k = 0; k < 20; ++k) {
+        whole->sim->step(1.0);
+        resumed.step(1.0);
+    }
+    expect_same_particles(*whole->sim, resumed);
+
+    for (const int component : {8, 5}) { // F_zz, an out-of-plane shear
+        talus::Snapshot bad = old;
+        auto &c = *std::find_if(bad.sets[0].columns.begin(), bad.sets[0].columns.end(),
+                                [](const auto &col) { return col.name == "F"; });
+        const double value = component == 8 ? 1.01 : 0.01;
+        std::memcpy(c.bytes.data() + sizeof(double) * (9 * 3 + component), &value, sizeof value);
+        auto third = talus::test::sim_from_text(kScenario);
+        try {
+            talus::Simulation resumed_bad(third->scenario, {}, bad);
+            ADD_FAILURE() << "an F with component " << component << " " << value << " restored";
+        } catch (const talus::Error &e) {
+            const std::string msg = e.what();
+            EXPECT_NE(msg.find(fmt::format("F out of the plane at particle {}", third_id)),
                       std::string::npos)
                 << msg;
         }

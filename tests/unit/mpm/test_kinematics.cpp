@@ -39,7 +39,7 @@ using talus::ParticleSet;
 
 struct Block {
     ParticleSet s;
-    std::vector<double> L, F_start, stress, de, rho, work;
+    std::vector<double> L, F_start, F_end, stress, de, rho, work;
     Block(int dim, bool finite_strain, std::size_t n) {
         s.dim = dim;
         s.finite_strain = finite_strain;
@@ -49,6 +49,7 @@ struct Block {
         s.resize(n);
         L.assign(9 * n, 0.0);
         F_start.assign(9 * n, -1.0);
+        F_end.assign(9 * n, -1.0);
         stress.assign(6 * n, -1.0);
         de.assign(6 * n, -1.0);
         rho.assign(n, -1.0);
@@ -67,9 +68,10 @@ struct Block {
         return talus::Gradients::columns(columns.data(), s.n);
     }
     std::size_t run(Isa isa, Layout layout = Layout::rows) {
-        return talus::kinematics_block(
-            s, 0, s.n, gradients(layout), dt,
-            {F_start.data(), stress.data(), de.data(), rho.data(), work.data(), &finite}, isa);
+        return talus::kinematics_block(s, 0, s.n, gradients(layout), dt,
+                                       {F_start.data(), s.dim == 2 ? F_end.data() : nullptr,
+                                        stress.data(), de.data(), rho.data(), work.data(), &finite},
+                                       isa);
     }
     // Point by point: a block of one point never fills a pack, so this is
     // the scalar code.
@@ -77,9 +79,10 @@ struct Block {
         const talus::Gradients all = gradients(layout);
         for (std::size_t p = 0; p < s.n; ++p)
             if (talus::kinematics_block(s, p, 1, all.from(p), dt,
-                                        {F_start.data() + 9 * p, stress.data() + 6 * p,
-                                         de.data() + 6 * p, rho.data() + p, work.data() + p,
-                                         &finite},
+                                        {F_start.data() + 9 * p,
+                                         s.dim == 2 ? F_end.data() + 9 * p : nullptr,
+                                         stress.data() + 6 * p, de.data() + 6 * p, rho.data() + p,
+                                         work.data() + p, &finite},
                                         Isa::generic) != 1)
                 return p;
         return s.n;
@@ -101,12 +104,14 @@ Block random_block(int dim, bool finite_strain, std::size_t n, unsigned seed,
     std::mt19937_64 rng(seed);
     std::uniform_real_distribution<double> u(-1.0, 1.0);
     for (std::size_t p = 0; p < n; ++p) {
+        double F[9];
         for (int i = 0; i < 3; ++i)
             for (int j = 0; j < 3; ++j) {
                 const bool in = i < dim && j < dim;
-                b.s.F[9 * p + 3 * i + j] = (i == j ? 1.0 : 0.0) + (in ? 0.2 * u(rng) : 0.0);
+                F[3 * i + j] = (i == j ? 1.0 : 0.0) + (in ? 0.2 * u(rng) : 0.0);
                 b.L[9 * p + 3 * i + j] = in ? u(rng) : 0.0;
             }
+        b.s.set_F(p, F);
         double *L = &b.L[9 * p];
         if (p % 8 == 3)
             for (int i = 0; i < 3; ++i)
@@ -125,6 +130,14 @@ Eigen::Matrix3d mat(const double *a) {
     return Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(a);
 }
 
+// Particle p's F, the full 3x3 (ParticleSet::F keeps plane strain's
+// in-plane block).
+Eigen::Matrix3d F_of(const ParticleSet &s, std::size_t p) {
+    double F[9];
+    s.F_of(p, F);
+    return mat(F);
+}
+
 } // namespace
 
 TEST(Kinematics, BlockMatchesTheDefinitions) {
@@ -134,14 +147,18 @@ TEST(Kinematics, BlockMatchesTheDefinitions) {
             const Block start = random_block(dim, finite, 37, 11);
             ASSERT_EQ(b.run(Isa::generic), 37u);
             for (std::size_t p = 0; p < 37; ++p) {
-                const Eigen::Matrix3d F0 = mat(&start.s.F[9 * p]), L = mat(&b.L[9 * p]);
+                const Eigen::Matrix3d F0 = F_of(start.s, p), L = mat(&b.L[9 * p]);
                 const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
                 const Eigen::Matrix3d F1 = (I + b.dt * L) * F0;
                 const std::string where = "dim " + std::to_string(dim) + ", point " +
                                           std::to_string(p) + (finite ? ", finite strain" : "");
-                EXPECT_LT((mat(&b.s.F[9 * p]) - F1).cwiseAbs().maxCoeff(), 1e-13) << where;
-                EXPECT_EQ(0, std::memcmp(&b.F_start[9 * p], &start.s.F[9 * p], 9 * sizeof(double)))
-                    << where;
+                EXPECT_LT((F_of(b.s, p) - F1).cwiseAbs().maxCoeff(), 1e-13) << where;
+                // The start F as it was, and in plane strain the end F
+                // whole, for the model, the particle's to the bit.
+                EXPECT_EQ(mat(&b.F_start[9 * p]), F0) << where;
+                if (dim == 2) {
+                    EXPECT_EQ(mat(&b.F_end[9 * p]), F_of(b.s, p)) << where;
+                }
                 EXPECT_NEAR(b.s.J[p], F1.determinant(), 1e-13) << where;
                 EXPECT_NEAR(b.rho[p], b.s.rho0 / F1.determinant(), 1e-13 * b.s.rho0) << where;
                 const Eigen::Matrix3d E = 0.5 * b.dt * (L + L.transpose());
@@ -195,8 +212,10 @@ TEST(Kinematics, EveryInstructionSetGivesTheScalarBits) {
                             auto same = [&](const double *a, const double *c, std::size_t m) {
                                 return std::memcmp(a, c, m * sizeof(double)) == 0;
                             };
-                            EXPECT_TRUE(same(b.s.F.data(), ref.s.F.data(), 9 * n)) << where;
+                            EXPECT_TRUE(same(b.s.F.data(), ref.s.F.data(), b.s.F_size() * n))
+                                << where;
                             EXPECT_TRUE(same(b.F_start.data(), ref.F_start.data(), 9 * n)) << where;
+                            EXPECT_TRUE(same(b.F_end.data(), ref.F_end.data(), 9 * n)) << where;
                             EXPECT_TRUE(same(b.de.data(), ref.de.data(), 6 * n)) << where;
                             EXPECT_TRUE(same(b.rho.data(), ref.rho.data(), n)) << where;
                             EXPECT_TRUE(same(b.work.data(), ref.work.data(), n)) << where;
@@ -223,12 +242,12 @@ TEST(Kinematics, AnInvertedPointStopsTheBlockThere) {
             Block ref = random_block(dim, false, bad, 9); // the points before it alone
             ASSERT_EQ(ref.run(Isa::generic), bad);
             EXPECT_EQ(0, std::memcmp(b.stress.data(), ref.stress.data(), 6 * bad * sizeof(double)));
-            EXPECT_EQ(0, std::memcmp(b.s.F.data(), ref.s.F.data(), 9 * bad * sizeof(double)));
+            EXPECT_EQ(
+                0, std::memcmp(b.s.F.data(), ref.s.F.data(), b.s.F_size() * bad * sizeof(double)));
             EXPECT_LT(b.s.J[bad], 0.0); // kept: the error message shows it
             for (std::size_t p = bad; p < n; ++p)
-                for (int k = 0; k < 9; ++k)
-                    EXPECT_EQ(b.s.F[9 * p + k], start.s.F[9 * p + k])
-                        << "point " << p << " of " << talus::isa_name(isa);
+                EXPECT_EQ(F_of(b.s, p), F_of(start.s, p))
+                    << "point " << p << " of " << talus::isa_name(isa);
             // The particles' stress is the plugin's to write: never touched.
             EXPECT_EQ(
                 0, std::memcmp(b.s.stress.data(), start.s.stress.data(), 6 * n * sizeof(double)));
@@ -260,11 +279,11 @@ TEST(Kinematics, ANonFiniteInputIsReported) {
                 // J = 1e-316 (subnormal, positive: not an inversion), so
                 // rho0 / J overflows.
                 Block tiny = random_block(dim, false, 13, 3);
-                double *F = &tiny.s.F[9 * at];
-                std::fill(F, F + 9, 0.0);
+                double F[9] = {};
                 for (int d = 0; d < dim; ++d)
                     F[4 * d] = dim == 2 ? 1e-158 : 1e-105;
                 if (dim == 2) F[8] = 1.0;
+                tiny.s.set_F(at, F);
                 std::fill(&tiny.L[9 * at], &tiny.L[9 * at] + 9, 0.0);
                 ASSERT_EQ(tiny.run(isa), 13u) << where;
                 EXPECT_GT(tiny.s.J[at], 0.0) << where;

@@ -56,7 +56,13 @@ struct ParticleSet {
     std::array<Column<double>, 3> x, x0, v, dx;
     Column<double> mass, vol0;
     Column<double> lp; // GIMP's half-width (cells)
-    Column<double> F;  // 9 per point, row-major
+    // The deformation gradient: 9 per point, row-major, in 3D; in plane
+    // strain the in-plane block alone, 4 per point (F_xx, F_xy, F_yx,
+    // F_yy), because there F_zz stays 1 and the other four stay 0: the
+    // kinematics change only the in-plane block. The step reads and writes
+    // F each step; in 2D the 5 values that never change were 80 of the
+    // bytes a particle moved. F_of and set_F speak the full 3x3.
+    Column<double> F;
     Column<double> J;
     Column<double> stress; // 6 per point, Voigt, Cauchy, tension +
     Column<double> state;  // state_size per point
@@ -73,6 +79,28 @@ struct ParticleSet {
     // dilation, lp for GIMP. Set before the first resize().
     int dim = 3;
     bool has_L = true, has_dx = true, has_C = true, has_divv = true, has_lp = true;
+
+    // F's values per particle (above).
+    std::size_t F_size() const { return dim == 2 ? 4 : 9; }
+    // Particle p's F as the full row-major 3x3 (9 values), and back (in
+    // plane strain only the in-plane block of `in` is kept).
+    void F_of(std::size_t p, double *out) const {
+        const double *f = &F[F_size() * p];
+        if (dim == 2) {
+            out[0] = f[0], out[1] = f[1], out[3] = f[2], out[4] = f[3];
+            out[2] = out[5] = out[6] = out[7] = 0.0;
+            out[8] = 1.0;
+        } else {
+            std::copy_n(f, 9, out);
+        }
+    }
+    void set_F(std::size_t p, const double *in) {
+        double *f = &F[F_size() * p];
+        if (dim == 2)
+            f[0] = in[0], f[1] = in[1], f[2] = in[3], f[3] = in[4];
+        else
+            std::copy_n(in, 9, f);
+    }
 
     ParticleSet() = default;
     ParticleSet(ParticleSet &&) noexcept = default;
@@ -124,7 +152,7 @@ void ParticleSet::for_each_named_column(Fn &&f) {
     f("mass", mass, 1);
     f("vol0", vol0, 1);
     if (has_lp) f("lp", lp, 1);
-    f("F", F, 9);
+    f("F", F, F_size());
     f("J", J, 1);
     f("stress", stress, 6);
     if (state_size > 0) f("state", state, state_size);
