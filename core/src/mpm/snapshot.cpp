@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <optional>
 #include <type_traits>
 
 namespace talus {
@@ -25,10 +26,12 @@ constexpr Snapshot::Type type_of() {
     }
 }
 
-// A plane-strain F as checkpoint formats 1 and 2 stored it, the whole 3x3
-// (ParticleSet::F keeps the in-plane block): taken if the rest is what
-// plane strain leaves it, F_zz = 1 and the others 0, exactly.
-void full_plane_F(const Snapshot::Column &c, std::size_t si, ParticleSet &set) {
+// A plane-strain F as checkpoint formats 1 and 2 stored it, the whole 3x3,
+// made the in-plane block ParticleSet::F keeps (F_xx, F_xy, F_yx, F_yy); taken
+// only if the rest is what plane strain leaves it, F_zz = 1 and the others 0,
+// exactly. The caller checks the block as it checks any column.
+Snapshot::Column plane_F(const Snapshot::Column &c, std::size_t si, const ParticleSet &set) {
+    Snapshot::Column out{c.name, c.type, 4, std::vector<std::byte>(set.n * 4 * sizeof(double))};
     for (std::size_t p = 0; p < set.n; ++p) {
         double F[9];
         std::memcpy(F, c.bytes.data() + 9 * sizeof(double) * p, sizeof F);
@@ -38,13 +41,10 @@ void full_plane_F(const Snapshot::Column &c, std::size_t si, ParticleSet &set) {
                     "the snapshot's particle set {} holds an F out of the plane at particle {} "
                     "(component {} is {}, plane strain keeps {}): the checkpoint is damaged",
                     si, set.id[p], a, F[a], a == 8 ? 1 : 0));
-        for (int a : {0, 1, 3, 4})
-            if (!std::isfinite(F[a]))
-                throw Error(fmt::format("the snapshot's particle set {} holds a non-finite value "
-                                        "({}) in 'F' of particle {}: the checkpoint is damaged",
-                                        si, F[a], set.id[p]));
-        set.set_F(p, F);
+        const double block[4] = {F[0], F[1], F[3], F[4]};
+        std::memcpy(out.bytes.data() + sizeof block * p, block, sizeof block);
     }
+    return out;
 }
 
 } // namespace
@@ -116,26 +116,23 @@ void Simulation::Impl::restore_from(const Snapshot &snap) {
         std::size_t k = 0;
         set.for_each_named_column([&](const char *name, auto &col, std::size_t stride) {
             using T = typename std::decay_t<decltype(col)>::value_type;
-            if constexpr (std::is_same_v<T, double>)
-                if (set.dim == 2 && std::strcmp(name, "F") == 0 && k < in.columns.size() &&
-                    in.columns[k].name == name && in.columns[k].stride == 9 &&
-                    in.columns[k].type == Snapshot::Type::f64 &&
-                    in.columns[k].bytes.size() == in.n * 9 * sizeof(double)) {
-                    full_plane_F(in.columns[k], si, set);
-                    ++k;
-                    return;
-                }
-            if (k >= in.columns.size() || in.columns[k].name != name ||
-                in.columns[k].type != type_of<T>() || in.columns[k].stride != stride ||
-                in.columns[k].bytes.size() != in.n * stride * sizeof(T))
+            std::optional<Snapshot::Column> converted;
+            if (set.dim == 2 && std::strcmp(name, "F") == 0 && k < in.columns.size() &&
+                in.columns[k].name == name && in.columns[k].stride == 9 &&
+                in.columns[k].type == Snapshot::Type::f64 &&
+                in.columns[k].bytes.size() == in.n * 9 * sizeof(double))
+                converted = plane_F(in.columns[k], si, set);
+            const Snapshot::Column *c = converted               ? &*converted
+                                        : k < in.columns.size() ? &in.columns[k]
+                                                                : nullptr;
+            if (!c || c->name != name || c->type != type_of<T>() || c->stride != stride ||
+                c->bytes.size() != in.n * stride * sizeof(T))
                 throw Error(fmt::format(
                     "the snapshot's particle set {} does not have the column '{}' the scenario "
                     "needs (of {} values per particle){}",
                     si, name, stride,
-                    k < in.columns.size() ? fmt::format("; it has '{}' there", in.columns[k].name)
-                                          : std::string()));
-            if (in.n > 0)
-                std::memcpy(col.data(), in.columns[k].bytes.data(), in.columns[k].bytes.size());
+                    c ? fmt::format("; it has '{}' there", c->name) : std::string()));
+            if (in.n > 0) std::memcpy(col.data(), c->bytes.data(), c->bytes.size());
             // Every value a run holds is finite (a step that makes one
             // otherwise fails), so a checkpoint with one is damaged; and the
             // plugins are told their inputs are finite
