@@ -19,6 +19,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cstddef>
 #include <cstdio>
@@ -195,6 +196,52 @@ void memory_bandwidth(int threads, int repeat) {
     std::fflush(stdout);
 }
 
+// How far apart two of the case's threads run: the one-way time for a
+// store by one thread to reach another, from a counter that threads 0 and
+// 1 hand back and forth (each waits for its turn, then passes it on; best
+// of the repeats). Cores that share a last-level cache hand a line over in
+// tens of nanoseconds; cores on different dies (chiplets, sockets) take
+// hundreds, and then data one thread wrote in a step and another reads in
+// the next crosses between caches (docs/performance.md, "The two cores
+// share no cache"). With one thread there is no other: null.
+void core_to_core(int threads, int repeat) {
+    const int used = threads > 0 ? threads : omp_get_max_threads();
+    if (used < 2) {
+        std::printf("{\"case\": \"core_to_core\", \"threads\": 1, \"one_way_ns\": null}\n");
+        std::fflush(stdout);
+        return;
+    }
+    constexpr long kHandovers = 1'000'000;
+    alignas(64) std::atomic<long> turn{0};
+    double best = 1e300;
+    for (int r = 0; r < std::max(repeat, 3); ++r) {
+        turn.store(0);
+        double seconds = 0.0;
+#pragma omp parallel num_threads(2)
+        {
+            const long me = omp_get_thread_num();
+            const auto t0 = std::chrono::steady_clock::now();
+            for (long i = me; i < 2 * kHandovers; i += 2) {
+                while (turn.load(std::memory_order_acquire) != i) {
+#if defined(__x86_64__) || defined(__i386__)
+                    __builtin_ia32_pause();
+#endif
+                }
+                turn.store(i + 1, std::memory_order_release);
+            }
+            if (me == 0) {
+                while (turn.load(std::memory_order_acquire) != 2 * kHandovers) {
+                }
+                seconds =
+                    std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+            }
+        }
+        best = std::min(best, seconds / static_cast<double>(2 * kHandovers));
+    }
+    std::printf("{\"case\": \"core_to_core\", \"threads\": 2, \"one_way_ns\": %.1f}\n", best * 1e9);
+    std::fflush(stdout);
+}
+
 } // namespace
 
 int main(int argc, char **argv) {
@@ -296,9 +343,10 @@ int main(int argc, char **argv) {
         {"2d_block_4m", 2, block_yaml(2, 1000, 1000, 0, 2, 0.002)},
     };
     // A misspelt --case would otherwise measure nothing and exit 0.
-    if (!only.empty() && only != "memory_bandwidth" &&
+    if (!only.empty() && only != "memory_bandwidth" && only != "core_to_core" &&
         std::none_of(cases.begin(), cases.end(), [&](const Case &c) { return c.name == only; })) {
-        std::fprintf(stderr, "talus_bench: no case '%s'; the cases are: memory_bandwidth",
+        std::fprintf(stderr,
+                     "talus_bench: no case '%s'; the cases are: memory_bandwidth, core_to_core",
                      only.c_str());
         for (const Case &c : cases)
             std::fprintf(stderr, ", %s", c.name.c_str());
@@ -310,6 +358,9 @@ int main(int argc, char **argv) {
         if ((only.empty() || only == "memory_bandwidth") && !comm.distributed())
             for (const int threads : thread_counts)
                 memory_bandwidth(threads, repeat);
+        if ((only.empty() || only == "core_to_core") && !comm.distributed())
+            for (const int threads : thread_counts)
+                core_to_core(threads, repeat);
         for (const Case &c : cases)
             for (const int threads : thread_counts) {
                 if (!only.empty() && c.name != only) continue;
