@@ -11,7 +11,9 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cassert>
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <thread>
 #include <vector>
@@ -74,12 +76,69 @@ void for_each(std::size_t n, F &&f) {
         f(static_cast<std::size_t>(i));
 }
 
+// Items [0, count) dealt out in T contiguous shares, one a thread: each
+// thread takes its own share's items from the front, then, when it has
+// none left, the others' from their backs. Dynamic, as a shared counter
+// is, but each thread comes back to the same items (the same particles and
+// nodes) step after step, phase after phase, as far as the work is even.
+// Where the two cores sit on different dies, each with its own last-level
+// cache (a store takes ~245 ns to reach the other core on the EPYC of
+// docs/performance.md, `talus_bench --case core_to_core`), a counter that
+// handed consecutive chunks to alternate threads sent half of the lines one
+// thread wrote to the other's cache in the next phase: the 64k 2D block at
+// 2 threads ran at 31-36 M particle-steps/s, below its one-thread rate per
+// thread, and runs at 44-45 M so (docs/performance.md, "The two cores
+// share no cache").
+class Shares {
+  public:
+    Shares(std::uint64_t count, int threads)
+        : share_(std::make_unique<Share[]>(static_cast<std::size_t>(threads))), T_(threads) {
+        // A share is (first, end) in one word, so that its owner's front
+        // and the others' back are taken by one compare-and-swap.
+        assert(count < (std::uint64_t{1} << 32));
+        const auto n = static_cast<std::uint64_t>(threads);
+        for (std::uint64_t u = 0; u < n; ++u)
+            share_[u].v.store(count * u / n << 32 | count * (u + 1) / n, std::memory_order_relaxed);
+    }
+    // g(item) for every item, on thread t of any team (of at most T
+    // threads: the shares of threads the team lacks are taken by the
+    // others). The caller's region ends in a barrier after the last item.
+    template <class G>
+    void run(int t, G &&g) {
+        take(share_[static_cast<std::size_t>(t)].v, g, true);
+        for (int k = 1; k < T_; ++k)
+            take(share_[static_cast<std::size_t>((t + k) % T_)].v, g, false);
+    }
+
+  private:
+    template <class G>
+    static void take(std::atomic<std::uint64_t> &share, G &g, bool front) {
+        std::uint64_t w = share.load(std::memory_order_relaxed);
+        for (;;) {
+            const std::uint64_t first = w >> 32, end = w & 0xffffffffu;
+            if (first >= end) return;
+            const std::uint64_t item = front ? first : end - 1;
+            const std::uint64_t rest = front ? (first + 1) << 32 | end : first << 32 | (end - 1);
+            if (share.compare_exchange_weak(w, rest, std::memory_order_relaxed)) {
+                g(item);
+                w = share.load(std::memory_order_relaxed);
+            }
+        }
+    }
+    // A line each: the owners' updates do not pass a line between cores.
+    struct alignas(64) Share {
+        std::atomic<std::uint64_t> v;
+    };
+    std::unique_ptr<Share[]> share_;
+    int T_;
+};
+
 // f(begin, end) for consecutive chunks of [0, n): for kernels that run a
 // block of particles per call (one indirect call per chunk, not per
-// particle). In equal static shares, or dealt out dynamically when chunks
-// cost unevenly (a G2P with the material update fused in: a plastic chunk
-// costs more than an elastic one). Every chunk but the last has `chunk`
-// elements, so each starts at a multiple of it.
+// particle). In equal static shares, or dealt out dynamically (Shares)
+// when chunks cost unevenly (a G2P with the material update fused in: a
+// plastic chunk costs more than an elastic one). Every chunk but the last
+// has `chunk` elements, so each starts at a multiple of it.
 enum class Schedule { equal_shares, dynamic };
 inline constexpr std::size_t kDefaultChunk = 512;
 template <class F>
@@ -89,11 +148,12 @@ void for_each_chunk(std::size_t n, F &&f, Schedule schedule = Schedule::equal_sh
     const std::ptrdiff_t chunks = static_cast<std::ptrdiff_t>((n + kChunk - 1) / kChunk);
     ++regions();
     if (schedule == Schedule::dynamic) {
-#pragma omp parallel for schedule(dynamic, 2)
-        for (std::ptrdiff_t c = 0; c < chunks; ++c) {
+        Shares shares(static_cast<std::uint64_t>(chunks), max_threads());
+#pragma omp parallel
+        shares.run(thread_index(), [&](std::uint64_t c) {
             const std::size_t begin = static_cast<std::size_t>(c) * kChunk;
             f(begin, std::min(n, begin + kChunk));
-        }
+        });
         return;
     }
 #pragma omp parallel for schedule(static)
@@ -122,36 +182,44 @@ void for_each_block(std::size_t n_blocks, F &&f, int grain = 4) {
 // other one is apart, see Ordering); an odd slab writes memory its two even
 // neighbours write, and runs once both are done.
 //
-// One region, not one per colour: the slabs are dealt out in that order
-// (every even slab before any odd one) and a thread that draws an odd slab
-// waits only for its two neighbours, not for every even slab. With a
-// barrier between the colours, a colour whose slabs do not divide evenly
-// among the threads kept one idle at its end (the 3D benchmark block: 7
-// and 6 slabs, 2 threads). Each node still gets its even slab's
-// contributions before its odd slab's, and each slab's in its particles'
-// order, so the sums have the same bits whatever the thread count. No
-// wait can block forever: an odd slab waits on even ones, which were all
-// drawn before it by threads that wait on nothing.
+// One region, not one per colour: a thread takes odd slabs once every even
+// one is taken, and waits only for an odd slab's two neighbours, not for
+// every even slab. With a barrier between the colours, a colour whose
+// slabs do not divide evenly among the threads kept one idle at its end
+// (the 3D benchmark block: 7 and 6 slabs, 2 threads). Each colour is dealt
+// out in shares (Shares), so a thread scatters the same stretch of the
+// grid every step, the stretch whose particles it moves in the fused G2P
+// (the particles are stored slab by slab) and, where the slabs run along
+// the last axis (no other axis has more cells), whose nodes it updates
+// (the grid update shares out rows, whose order is the last axis's).
+// Each node still gets its even slab's contributions before its
+// odd slab's, and each slab's in its particles' order, so the sums have
+// the same bits whatever the thread count. No wait can block forever: an
+// odd slab waits on even ones, which were all taken before it by threads
+// that wait on nothing.
 template <class F>
 void for_each_slab_by_colour(int n_slabs, F &&f) {
     if (n_slabs <= 0) return;
     const int n_even = (n_slabs + 1) / 2;
     // One small allocation a pass (none inside the loop); all false.
     const auto done = std::make_unique<std::atomic<bool>[]>(static_cast<std::size_t>(n_slabs));
-    std::atomic<int> next{0};
     auto finished = [&](int slab) {
         return slab >= n_slabs ||
                done[static_cast<std::size_t>(slab)].load(std::memory_order_acquire);
     };
+    Shares even(static_cast<std::uint64_t>(n_even), max_threads()),
+        odd(static_cast<std::uint64_t>(n_slabs - n_even), max_threads());
     ++regions();
 #pragma omp parallel
-    for (;;) {
-        const int ticket = next.fetch_add(1, std::memory_order_relaxed);
-        if (ticket >= n_slabs) break;
-        const int slab = ticket < n_even ? 2 * ticket : 2 * (ticket - n_even) + 1;
-        if (slab % 2 == 1)
-            // Spin briefly (a neighbour is usually finishing), then yield
-            // the core: the neighbour's thread may be waiting for one.
+    {
+        const int t = thread_index();
+        even.run(t, [&](std::uint64_t k) {
+            const int slab = 2 * static_cast<int>(k);
+            f(slab);
+            done[static_cast<std::size_t>(slab)].store(true, std::memory_order_release);
+        });
+        odd.run(t, [&](std::uint64_t k) {
+            const int slab = 2 * static_cast<int>(k) + 1;
             for (int spins = 0; !(finished(slab - 1) && finished(slab + 1)); ++spins) {
                 if (spins < 4096) {
 #if defined(__x86_64__) || defined(__i386__)
@@ -161,8 +229,9 @@ void for_each_slab_by_colour(int n_slabs, F &&f) {
                     std::this_thread::yield();
                 }
             }
-        f(slab);
-        done[static_cast<std::size_t>(slab)].store(true, std::memory_order_release);
+            f(slab);
+            done[static_cast<std::size_t>(slab)].store(true, std::memory_order_release);
+        });
     }
 }
 
