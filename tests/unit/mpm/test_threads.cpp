@@ -2,11 +2,15 @@
 // a time and each slab in memory order, so every node sums its
 // contributions in the same order whatever the number of threads. Two
 // threads must reproduce one thread bit for bit.
+#include "parallel.hpp"
 #include "solver_helpers.hpp"
 
 #include <gtest/gtest.h>
 
 #include <omp.h>
+
+#include <atomic>
+#include <vector>
 
 namespace {
 
@@ -212,4 +216,51 @@ TEST(Threads, ACountBeyondTheLimitIsRefusedBeforeTheRun) {
             << e.what();
     }
     omp_set_num_threads(before);
+}
+
+// The dynamic loops' shares (par::Shares): every item handed out exactly
+// once, whether the team has as many threads as there are shares or fewer
+// (the others' shares are then taken from their backs), for empty, tiny
+// and uneven counts.
+TEST(Threads, TheSharesHandOutEveryItemOnce) {
+    for (const int shares : {1, 2, 3, 5})
+        for (const int team : {1, 2})
+            for (const std::uint64_t count : {0u, 1u, 2u, 7u, 1000u}) {
+                SCOPED_TRACE(::testing::Message() << shares << " shares, a team of " << team << ", "
+                                                  << count << " items");
+                std::vector<std::atomic<int>> taken(count);
+                talus::par::Shares s(count, shares);
+#pragma omp parallel num_threads(team)
+                if (omp_get_thread_num() < shares)
+                    s.run(omp_get_thread_num(), [&](std::uint64_t item) {
+                        ASSERT_LT(item, count);
+                        ++taken[item];
+                    });
+                for (std::uint64_t k = 0; k < count; ++k)
+                    EXPECT_EQ(taken[k].load(), 1) << "item " << k;
+            }
+}
+
+// The fused pass's loop (par::for_each_chunk, dynamic): every element in
+// exactly one chunk, each chunk starting at a multiple of the chunk size,
+// with two threads.
+TEST(Threads, ADynamicChunkLoopCoversEveryElementOnce) {
+    const int before = talus::par::max_threads();
+    talus::par::set_threads(2);
+    for (const std::size_t n : {0u, 1u, 511u, 512u, 513u, 100000u}) {
+        SCOPED_TRACE(::testing::Message() << n << " elements");
+        std::vector<std::atomic<int>> seen(n);
+        talus::par::for_each_chunk(
+            n,
+            [&](std::size_t begin, std::size_t end) {
+                EXPECT_EQ(begin % 512, 0u);
+                EXPECT_LE(end, n);
+                for (std::size_t i = begin; i < end; ++i)
+                    ++seen[i];
+            },
+            talus::par::Schedule::dynamic, 512);
+        for (std::size_t i = 0; i < n; ++i)
+            ASSERT_EQ(seen[i].load(), 1) << "element " << i;
+    }
+    talus::par::set_threads(before);
 }
