@@ -217,24 +217,36 @@ void core_to_core(int threads, int repeat) {
     for (int r = 0; r < std::max(repeat, 3); ++r) {
         turn.store(0);
         double seconds = 0.0;
+        bool alone = false;
 #pragma omp parallel num_threads(2)
         {
             const long me = omp_get_thread_num();
-            const auto t0 = std::chrono::steady_clock::now();
-            for (long i = me; i < 2 * kHandovers; i += 2) {
-                while (turn.load(std::memory_order_acquire) != i) {
+            // A runtime that grants one thread (OMP_THREAD_LIMIT=1) would
+            // leave it waiting for a turn nobody passes.
+            if (omp_get_num_threads() < 2) {
+                alone = true;
+            } else {
+                const auto t0 = std::chrono::steady_clock::now();
+                for (long i = me; i < 2 * kHandovers; i += 2) {
+                    while (turn.load(std::memory_order_acquire) != i) {
 #if defined(__x86_64__) || defined(__i386__)
-                    __builtin_ia32_pause();
+                        __builtin_ia32_pause();
 #endif
+                    }
+                    turn.store(i + 1, std::memory_order_release);
                 }
-                turn.store(i + 1, std::memory_order_release);
-            }
-            if (me == 0) {
-                while (turn.load(std::memory_order_acquire) != 2 * kHandovers) {
+                if (me == 0) {
+                    while (turn.load(std::memory_order_acquire) != 2 * kHandovers) {
+                    }
+                    seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0)
+                                  .count();
                 }
-                seconds =
-                    std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
             }
+        }
+        if (alone) {
+            std::printf("{\"case\": \"core_to_core\", \"threads\": 1, \"one_way_ns\": null}\n");
+            std::fflush(stdout);
+            return;
         }
         best = std::min(best, seconds / static_cast<double>(2 * kHandovers));
     }
