@@ -164,16 +164,28 @@ void for_each_chunk(std::size_t n, F &&f, Schedule schedule = Schedule::equal_sh
 }
 
 // f(b) for blocks b in [0, n_blocks) of uneven cost (material batches: a
-// plastic block costs more than an elastic one), dealt out dynamically,
-// `grain` at a time (1 for a few large tasks: the columns of a particle
-// set in its re-sort).
+// plastic block costs more than an elastic one), dealt out dynamically in
+// shares (Shares), so that a thread comes back to the blocks whose
+// particles it moved in the pass before.
 template <class F>
-void for_each_block(std::size_t n_blocks, F &&f, int grain = 4) {
-    const std::ptrdiff_t N = static_cast<std::ptrdiff_t>(n_blocks);
+void for_each_block(std::size_t n_blocks, F &&f) {
     ++regions();
-#pragma omp parallel for schedule(dynamic, grain)
-    for (std::ptrdiff_t b = 0; b < N; ++b)
-        f(static_cast<std::size_t>(b));
+    Shares shares(static_cast<std::uint64_t>(n_blocks), max_threads());
+#pragma omp parallel
+    shares.run(thread_index(), [&](std::uint64_t b) { f(static_cast<std::size_t>(b)); });
+}
+
+// f(k) for a few large tasks k in [0, n_tasks) that the caller lists
+// largest first (the columns of a particle set in its re-sort), handed
+// out one at a time in that order: the longest go first, and the short
+// ones fill in at the end.
+template <class F>
+void for_each_task(std::size_t n_tasks, F &&f) {
+    const std::ptrdiff_t N = static_cast<std::ptrdiff_t>(n_tasks);
+    ++regions();
+#pragma omp parallel for schedule(dynamic, 1)
+    for (std::ptrdiff_t k = 0; k < N; ++k)
+        f(static_cast<std::size_t>(k));
 }
 
 // f(slab) for every slab, in two colours: the even slabs (colour 0), then

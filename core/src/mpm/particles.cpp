@@ -141,20 +141,17 @@ void ParticleSet::permute(const std::vector<std::uint32_t> &from) {
     std::vector<std::byte> aside(room);
     std::stable_sort(columns.begin(), columns.end(),
                      [](const Raw &a, const Raw &b) { return a.bytes > b.bytes; });
-    par::for_each_block(
-        columns.size(),
-        [&](std::size_t t) {
-            const Raw r = columns[t];
-            std::byte *room_aside = aside.data() + r.aside;
-            switch (r.bytes) {
-            case 4: apply_cycles<4>(r.data, r.bytes, cycles, room_aside); break;
-            case 8: apply_cycles<8>(r.data, r.bytes, cycles, room_aside); break;
-            case 48: apply_cycles<48>(r.data, r.bytes, cycles, room_aside); break;
-            case 72: apply_cycles<72>(r.data, r.bytes, cycles, room_aside); break;
-            default: apply_cycles<0>(r.data, r.bytes, cycles, room_aside); break;
-            }
-        },
-        1);
+    par::for_each_task(columns.size(), [&](std::size_t t) {
+        const Raw r = columns[t];
+        std::byte *room_aside = aside.data() + r.aside;
+        switch (r.bytes) {
+        case 4: apply_cycles<4>(r.data, r.bytes, cycles, room_aside); break;
+        case 8: apply_cycles<8>(r.data, r.bytes, cycles, room_aside); break;
+        case 48: apply_cycles<48>(r.data, r.bytes, cycles, room_aside); break;
+        case 72: apply_cycles<72>(r.data, r.bytes, cycles, room_aside); break;
+        default: apply_cycles<0>(r.data, r.bytes, cycles, room_aside); break;
+        }
+    });
 }
 
 void ParticleSet::move(std::size_t from, std::size_t to) {
