@@ -203,14 +203,11 @@ void memory_bandwidth(int threads, int repeat) {
 // tens of nanoseconds; cores on different dies (chiplets, sockets) take
 // hundreds, and then data one thread wrote in a step and another reads in
 // the next crosses between caches (docs/performance.md, "The two cores
-// share no cache"). With one thread there is no other: null.
-void core_to_core(int threads, int repeat) {
+// share no cache"). In seconds, best of the repeats; nothing where fewer
+// than two threads run (the JSON line then says null).
+std::optional<double> one_way_seconds(int threads, int repeat) {
     const int used = threads > 0 ? threads : omp_get_max_threads();
-    if (used < 2) {
-        std::printf("{\"case\": \"core_to_core\", \"threads\": 1, \"one_way_ns\": null}\n");
-        std::fflush(stdout);
-        return;
-    }
+    if (used < 2) return std::nullopt;
     constexpr long kHandovers = 1'000'000;
     alignas(64) std::atomic<long> turn{0};
     double best = 1e300;
@@ -243,14 +240,18 @@ void core_to_core(int threads, int repeat) {
                 }
             }
         }
-        if (alone) {
-            std::printf("{\"case\": \"core_to_core\", \"threads\": 1, \"one_way_ns\": null}\n");
-            std::fflush(stdout);
-            return;
-        }
+        if (alone) return std::nullopt;
         best = std::min(best, seconds / static_cast<double>(2 * kHandovers));
     }
-    std::printf("{\"case\": \"core_to_core\", \"threads\": 2, \"one_way_ns\": %.1f}\n", best * 1e9);
+    return best;
+}
+
+void core_to_core(int threads, int repeat) {
+    if (const std::optional<double> t = one_way_seconds(threads, repeat))
+        std::printf("{\"case\": \"core_to_core\", \"threads\": 2, \"one_way_ns\": %.1f}\n",
+                    *t * 1e9);
+    else
+        std::printf("{\"case\": \"core_to_core\", \"threads\": 1, \"one_way_ns\": null}\n");
     std::fflush(stdout);
 }
 
