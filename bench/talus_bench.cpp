@@ -354,6 +354,10 @@ int main(int argc, char **argv) {
         {"3d_block_4m", 3, block_yaml(3, 80, 80, 80, 2, 0.02)},
         {"2d_block_64k", 2, block_yaml(2, 128, 128, 0, 2, 0.002)},
         {"2d_block_4m", 2, block_yaml(2, 1000, 1000, 0, 2, 0.002)},
+        // A domain four times (2D) or twice to four times (3D) as long as
+        // it is high, as a slope's: 1M particles, the block's set-up.
+        {"2d_wide_bspline2_linear_elastic", 2, block_yaml(2, 1000, 250, 0, 2, 0.002)},
+        {"3d_wide_bspline2_linear_elastic", 3, block_yaml(3, 100, 50, 25, 2, 0.02)},
     };
     // A misspelt --case would otherwise measure nothing and exit 0.
     if (!only.empty() && only != "memory_bandwidth" && only != "core_to_core" &&
