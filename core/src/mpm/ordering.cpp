@@ -11,14 +11,29 @@ namespace talus {
 
 Ordering::Ordering(const GridGeometry &geo, std::size_t n_sets)
     : geo_(geo), order_(n_sets), slab_begin_(n_sets), slab_of_(n_sets), cell_of_(n_sets) {
-    // Slabs across the longest direction; on a tie the slowest-varying
-    // index of the cell order, so that a slab's particles are contiguous in
-    // memory once sorted by cell.
+    // Slabs across the slowest-varying axis of the cell order (z, then y,
+    // then x) that has kMinSlabs of them, else across the longest. Across
+    // the slowest, a slab's particles are one stretch of memory once sorted
+    // by cell, and so are a thread's share of the slabs, its share of the
+    // fused G2P's chunks and its rows of the grid update: the same part of
+    // the body, step after step, in the same core's cache. Across the
+    // longest axis of a domain longer than high (a slope), a slab was 250
+    // short runs of particles and the threads' shares of P2G and of G2P
+    // crossed: 1M particles in 1000 x 250 cells ran at 26-32 M
+    // particle-steps/s at 2 threads against 41-44 M with slabs across y
+    // (docs/performance.md, "Slabs across the slowest axis"). The count
+    // does not depend on the thread count, which would change the order of
+    // P2G's sums with it.
     const int dim = geo.dim;
-    axis_ = dim - 1;
-    for (int d = dim - 2; d >= 0; --d)
-        if (geo.cells[static_cast<std::size_t>(d)] > geo.cells[static_cast<std::size_t>(axis_)])
-            axis_ = d;
+    const auto cells = [&](int d) { return geo.cells[static_cast<std::size_t>(d)]; };
+    axis_ = -1;
+    for (int d = dim - 1; d >= 0 && axis_ < 0; --d)
+        if (cells(d) / kWidth >= kMinSlabs) axis_ = d;
+    if (axis_ < 0) {
+        axis_ = dim - 1;
+        for (int d = dim - 2; d >= 0; --d)
+            if (cells(d) > cells(axis_)) axis_ = d;
+    }
     n_slabs_ = std::max(1, geo.cells[static_cast<std::size_t>(axis_)] / kWidth);
     // A row (2D) or plane (3D) of the cell order: cell_index's stride
     // along the last axis.
@@ -51,12 +66,22 @@ void Ordering::invalidate() {
     slabs_changed_ = true;
 }
 
-void Ordering::restore(std::vector<std::vector<std::int32_t>> slab_of, double out_of_order,
+void Ordering::restore(const std::vector<ParticleSet> &sets,
+                       std::vector<std::vector<std::int32_t>> slab_of, double out_of_order,
                        bool slabs_changed) {
     slab_of_ = std::move(slab_of);
+    const std::size_t a = static_cast<std::size_t>(axis_);
     for (std::size_t si = 0; si < order_.size(); ++si) {
+        auto &slab = slab_of_[si];
+        const ParticleSet &s = sets[si];
+        if (slab.size() == s.n)
+            for (std::size_t p = 0; p < s.n; ++p)
+                if (slab[p] != slab_of_cell(geo_.cell(axis_, s.x[a][p]))) {
+                    slab.clear();
+                    break;
+                }
         order_[si].clear(); // binned afresh from the restored marks
-        cell_of_[si].resize(slab_of_[si].size());
+        cell_of_[si].resize(slab.size());
     }
     out_of_order_ = out_of_order;
     slabs_changed_ = slabs_changed;

@@ -23,6 +23,9 @@ class Ordering {
 
     // Cells per slab along the axis.
     static constexpr int kWidth = 4;
+    // Slabs the slowest axis needs to be chosen (the constructor): 8 keep
+    // two threads busy through both colours, each with two slabs of each.
+    static constexpr int kMinSlabs = 8;
 
     int axis() const { return axis_; }
     int n_slabs() const { return n_slabs_; }
@@ -84,7 +87,14 @@ class Ordering {
     const std::vector<std::int32_t> &slabs(std::size_t si) const { return slab_of_[si]; }
     double out_of_order() const { return out_of_order_; }
     bool slabs_changed() const { return slabs_changed_; }
-    void restore(std::vector<std::vector<std::int32_t>> slab_of, double out_of_order,
+    // The marks are checked against the restored sets' positions: a set
+    // with one that is not its particle's slab (a checkpoint of a build
+    // that chose other slabs, or a damaged one) is binned afresh from the
+    // positions. Trusted, such a mark would put a particle into a slab
+    // whose nodes another thread writes at the same time, or past the
+    // slab count.
+    void restore(const std::vector<ParticleSet> &sets,
+                 std::vector<std::vector<std::int32_t>> slab_of, double out_of_order,
                  bool slabs_changed);
 
   private:

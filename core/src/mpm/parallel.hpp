@@ -201,9 +201,9 @@ void for_each_task(std::size_t n_tasks, F &&f) {
 // (the 3D benchmark block: 7 and 6 slabs, 2 threads). Each colour is dealt
 // out in shares (Shares), so a thread scatters the same stretch of the
 // grid every step, the stretch whose particles it moves in the fused G2P
-// (the particles are stored slab by slab) and, where the slabs run along
-// the last axis (no other axis has more cells), whose nodes it updates
-// (the grid update shares out rows, whose order is the last axis's).
+// (the particles are stored slab by slab) and, where the slabs run across
+// the last axis (Ordering's choice wherever it has 8 slabs), whose nodes
+// it updates (the grid update shares out rows, in the last axis's order).
 // Each node still gets its even slab's contributions before its
 // odd slab's, and each slab's in its particles' order, so the sums have
 // the same bits whatever the thread count. No wait can block forever: an

@@ -179,7 +179,7 @@ void Simulation::Impl::restore_from(const Snapshot &snap) {
     hold = snap.hold;
     below_since = snap.below_since;
     ratio = snap.ratio;
-    order.restore(std::move(slabs), snap.out_of_order, snap.slabs_changed);
+    order.restore(sets, std::move(slabs), snap.out_of_order, snap.slabs_changed);
 }
 
 } // namespace talus

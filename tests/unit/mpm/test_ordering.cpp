@@ -11,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -145,38 +146,99 @@ TEST(Ordering, SortPutsParticlesInCellOrderStablyWithEveryColumnTheirOwn3D) { ch
 
 // Binning by slab (Ordering::prepare without a sort): each slab's list
 // holds exactly the particles whose cell lies in it, in memory order, for
-// a small set and a large one, with two threads.
+// a small set and a large one, with two threads, with slabs across the
+// slowest axis (y) and across x (y has too few cells).
 TEST(Ordering, BinsEveryParticleIntoItsSlabInMemoryOrder) {
     const int threads = talus::par::max_threads();
-    for (const std::size_t n : {std::size_t{5000}, std::size_t{150001}}) {
-        GridGeometry g = geometry(2);
-        g.cells = {64, 40, 1}; // 16 slabs of 4 cells along x
-        std::vector<ParticleSet> sets;
-        sets.push_back(particles(g, n, 0, 9));
-        talus::par::set_threads(2);
-        Ordering order(g, sets.size());
-        order.prepare(sets, 0.0);
-        const ParticleSet &s = sets[0];
-        std::vector<int> seen(s.n, 0);
-        ASSERT_EQ(order.n_slabs(), 16);
-        for (int slab = 0; slab < order.n_slabs(); ++slab) {
-            const Ordering::Range r = order.slab(0, slab);
-            ASSERT_GT(r.end - r.begin, 0);
-            for (const std::uint32_t *k = r.begin; k != r.end; ++k) {
-                ASSERT_LT(*k, s.n);
-                if (k != r.begin) {
-                    ASSERT_GT(*k, k[-1]) << "slab " << slab << " out of memory order";
+    for (const std::array<int, 3> cells : {std::array<int, 3>{40, 64, 1}, {64, 28, 1}})
+        for (const std::size_t n : {std::size_t{5000}, std::size_t{150001}}) {
+            GridGeometry g = geometry(2);
+            g.cells = cells; // 16 slabs of 4 cells along y, then along x
+            std::vector<ParticleSet> sets;
+            sets.push_back(particles(g, n, 0, 9));
+            talus::par::set_threads(2);
+            Ordering order(g, sets.size());
+            order.prepare(sets, 0.0);
+            const ParticleSet &s = sets[0];
+            std::vector<int> seen(s.n, 0);
+            ASSERT_EQ(order.axis(), cells[0] == 64 ? 0 : 1);
+            ASSERT_EQ(order.n_slabs(), 16);
+            for (int slab = 0; slab < order.n_slabs(); ++slab) {
+                const Ordering::Range r = order.slab(0, slab);
+                ASSERT_GT(r.end - r.begin, 0);
+                for (const std::uint32_t *k = r.begin; k != r.end; ++k) {
+                    ASSERT_LT(*k, s.n);
+                    if (k != r.begin) {
+                        ASSERT_GT(*k, k[-1]) << "slab " << slab << " out of memory order";
+                    }
+                    const int cell = static_cast<int>(
+                        std::floor(s.x[static_cast<std::size_t>(order.axis())][*k] * g.inv_h));
+                    ASSERT_EQ(std::min(cell / 4, 15), slab) << "particle " << *k;
+                    ++seen[*k];
                 }
-                const int cell = static_cast<int>(
-                    std::floor(s.x[static_cast<std::size_t>(order.axis())][*k] * g.inv_h));
-                ASSERT_EQ(std::min(cell / 4, 15), slab) << "particle " << *k;
-                ++seen[*k];
             }
+            for (std::size_t p = 0; p < s.n; ++p)
+                ASSERT_EQ(seen[p], 1) << "particle " << p << " binned " << seen[p] << " times";
         }
-        for (std::size_t p = 0; p < s.n; ++p)
-            ASSERT_EQ(seen[p], 1) << "particle " << p << " binned " << seen[p] << " times";
-    }
     talus::par::set_threads(threads);
+}
+
+// A checkpoint's slab marks are checked against the positions: marks of
+// another axis (a build that chose slabs across x, 16 of them where this
+// one makes 10 across y) are dropped and the set binned afresh, while
+// marks that match are kept as they are (the restored run bins as the
+// uninterrupted one does).
+TEST(Ordering, RestoredMarksOfOtherSlabsAreBinnedAfresh) {
+    GridGeometry g = geometry(2);
+    g.cells = {64, 40, 1};
+    std::vector<ParticleSet> sets;
+    sets.push_back(particles(g, 20000, 0, 11));
+    const ParticleSet &s = sets[0];
+    std::vector<std::int32_t> across_x(s.n), across_y(s.n);
+    for (std::size_t p = 0; p < s.n; ++p) {
+        across_x[p] = std::min(g.cell(0, s.x[0][p]) / 4, 15);
+        across_y[p] = std::min(g.cell(1, s.x[1][p]) / 4, 9);
+    }
+    {
+        Ordering order(g, 1);
+        ASSERT_EQ(order.axis(), 1);
+        order.restore(sets, {across_y}, 0.0, false);
+        EXPECT_TRUE(order.slabs(0) == across_y);
+    }
+    Ordering order(g, 1);
+    order.restore(sets, {across_x}, 0.0, false);
+    EXPECT_TRUE(order.slabs(0).empty());
+    order.prepare(sets, 0.0);
+    ASSERT_EQ(order.n_slabs(), 10);
+    std::size_t seen = 0;
+    for (int slab = 0; slab < order.n_slabs(); ++slab) {
+        const Ordering::Range r = order.slab(0, slab);
+        for (const std::uint32_t *k = r.begin; k != r.end; ++k, ++seen)
+            ASSERT_EQ(across_y[*k], slab) << "particle " << *k;
+    }
+    EXPECT_EQ(seen, s.n);
+}
+
+// Which axis the slabs run across: the slowest-varying of the cell order
+// (z, then y, then x) with at least 8 slabs of 4 cells, else the longest
+// (the last on a tie).
+TEST(Ordering, SlabsRunAcrossTheSlowestAxisWithEightOfThem) {
+    struct Case {
+        int dim;
+        std::array<int, 3> cells;
+        int axis, slabs;
+    };
+    for (const Case &c :
+         {Case{2, {1000, 250, 1}, 1, 62}, Case{2, {250, 1000, 1}, 1, 250},
+          Case{2, {60, 32, 1}, 1, 8}, Case{2, {60, 31, 1}, 0, 15}, Case{2, {20, 28, 1}, 1, 7},
+          Case{2, {28, 28, 1}, 1, 7}, Case{3, {50, 50, 50}, 2, 12}, Case{3, {100, 50, 25}, 1, 12},
+          Case{3, {100, 28, 28}, 0, 25}, Case{3, {20, 24, 20}, 1, 6}}) {
+        GridGeometry g = geometry(c.dim);
+        g.cells = c.cells;
+        const Ordering order(g, 1);
+        EXPECT_EQ(order.axis(), c.axis) << c.cells[0] << " x " << c.cells[1] << " x " << c.cells[2];
+        EXPECT_EQ(order.n_slabs(), c.slabs) << c.cells[0] << " x " << c.cells[1];
+    }
 }
 
 // The slabs' schedule (par::for_each_slab_by_colour, P2G's loop): every
