@@ -13,17 +13,18 @@ Ordering::Ordering(const GridGeometry &geo, std::size_t n_sets)
     : geo_(geo), order_(n_sets), slab_begin_(n_sets), slab_of_(n_sets), cell_of_(n_sets) {
     // Slabs across the slowest-varying axis of the cell order (z, then y,
     // then x) that has kMinSlabs of them, else across the longest. Across
-    // the slowest, a slab's particles are one stretch of memory once sorted
-    // by cell, and so are a thread's share of the slabs, its share of the
-    // fused G2P's chunks and its rows of the grid update: the same part of
-    // the body, step after step, in the same core's cache. Across the
-    // longest axis of a domain longer than high (a slope), a slab was 250
-    // short runs of particles and the threads' shares of P2G and of G2P
-    // crossed: 1M particles in 1000 x 250 cells ran at 26-32 M
-    // particle-steps/s at 2 threads against 41-44 M with slabs across y
-    // (docs/performance.md, "Slabs across the slowest axis"). The count
-    // does not depend on the thread count, which would change the order of
-    // P2G's sums with it.
+    // the last axis, a slab's particles are one stretch of memory once
+    // sorted by cell, and a thread's share of the slabs, its share of the
+    // fused G2P's chunks and its rows of the grid update are the same part
+    // of the body, step after step, in the same core's cache; across y in
+    // 3D (z too short), a slab is still one long stretch per plane of
+    // cells. Across the longest axis of a domain longer than high (a
+    // slope), a slab was 250 short runs of particles and the threads'
+    // shares of P2G and of G2P crossed: 1M particles in 1000 x 250 cells
+    // ran at 26-32 M particle-steps/s at 2 threads against 41-46 M with
+    // slabs across y (docs/performance.md, "Slabs across the slowest
+    // axis"). The rule depends on the grid alone: one that followed the
+    // thread count would change the order of P2G's sums with it.
     const int dim = geo.dim;
     const auto cells = [&](int d) { return geo.cells[static_cast<std::size_t>(d)]; };
     axis_ = -1;
