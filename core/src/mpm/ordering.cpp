@@ -71,13 +71,12 @@ void Ordering::restore(const std::vector<ParticleSet> &sets,
                        std::vector<std::vector<std::int32_t>> slab_of, double out_of_order,
                        bool slabs_changed) {
     slab_of_ = std::move(slab_of);
-    const std::size_t a = static_cast<std::size_t>(axis_);
     for (std::size_t si = 0; si < order_.size(); ++si) {
         auto &slab = slab_of_[si];
         const ParticleSet &s = sets[si];
         if (slab.size() == s.n)
             for (std::size_t p = 0; p < s.n; ++p)
-                if (slab[p] != slab_of_cell(geo_.cell(axis_, s.x[a][p]))) {
+                if (slab[p] != slab_of_point(s, p)) {
                     slab.clear();
                     break;
                 }
@@ -104,9 +103,8 @@ void Ordering::bin(const std::vector<ParticleSet> &sets) {
         auto &slab = slab_of_[si];
         if (slab.size() != s.n) {
             slab.resize(s.n);
-            const std::size_t a = static_cast<std::size_t>(axis_);
             for (std::size_t p = 0; p < s.n; ++p)
-                slab[p] = slab_of_cell(geo_.cell(axis_, s.x[a][p]));
+                slab[p] = slab_of_point(s, p);
         }
         for (std::size_t p = 0; p < s.n; ++p)
             ++begin[static_cast<std::size_t>(slab[p]) + 1];

@@ -30,6 +30,10 @@ class Ordering {
     int axis() const { return axis_; }
     int n_slabs() const { return n_slabs_; }
     int slab_of_cell(int cell) const { return std::min(cell / kWidth, n_slabs_ - 1); }
+    // Particle p's slab, from its position.
+    int slab_of_point(const ParticleSet &s, std::size_t p) const {
+        return slab_of_cell(geo_.cell(axis_, s.x[static_cast<std::size_t>(axis_)][p]));
+    }
     // Set si's particles of one slab, in memory order.
     struct Range {
         const std::uint32_t *begin, *end;

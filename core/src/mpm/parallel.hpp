@@ -133,6 +133,18 @@ class Shares {
     int T_;
 };
 
+// f(b) for blocks b in [0, n_blocks) of uneven cost (material batches: a
+// plastic block costs more than an elastic one), dealt out dynamically in
+// shares (Shares), so that a thread comes back to the blocks whose
+// particles it moved in the pass before.
+template <class F>
+void for_each_block(std::size_t n_blocks, F &&f) {
+    ++regions();
+    Shares shares(static_cast<std::uint64_t>(n_blocks), max_threads());
+#pragma omp parallel
+    shares.run(thread_index(), [&](std::uint64_t b) { f(static_cast<std::size_t>(b)); });
+}
+
 // f(begin, end) for consecutive chunks of [0, n): for kernels that run a
 // block of particles per call (one indirect call per chunk, not per
 // particle). In equal static shares, or dealt out dynamically (Shares)
@@ -146,33 +158,19 @@ void for_each_chunk(std::size_t n, F &&f, Schedule schedule = Schedule::equal_sh
                     std::size_t chunk = kDefaultChunk) {
     const std::size_t kChunk = std::max<std::size_t>(1, chunk);
     const std::ptrdiff_t chunks = static_cast<std::ptrdiff_t>((n + kChunk - 1) / kChunk);
-    ++regions();
     if (schedule == Schedule::dynamic) {
-        Shares shares(static_cast<std::uint64_t>(chunks), max_threads());
-#pragma omp parallel
-        shares.run(thread_index(), [&](std::uint64_t c) {
-            const std::size_t begin = static_cast<std::size_t>(c) * kChunk;
+        for_each_block(static_cast<std::size_t>(chunks), [&](std::size_t c) {
+            const std::size_t begin = c * kChunk;
             f(begin, std::min(n, begin + kChunk));
         });
         return;
     }
+    ++regions();
 #pragma omp parallel for schedule(static)
     for (std::ptrdiff_t c = 0; c < chunks; ++c) {
         const std::size_t begin = static_cast<std::size_t>(c) * kChunk;
         f(begin, std::min(n, begin + kChunk));
     }
-}
-
-// f(b) for blocks b in [0, n_blocks) of uneven cost (material batches: a
-// plastic block costs more than an elastic one), dealt out dynamically in
-// shares (Shares), so that a thread comes back to the blocks whose
-// particles it moved in the pass before.
-template <class F>
-void for_each_block(std::size_t n_blocks, F &&f) {
-    ++regions();
-    Shares shares(static_cast<std::uint64_t>(n_blocks), max_threads());
-#pragma omp parallel
-    shares.run(thread_index(), [&](std::uint64_t b) { f(static_cast<std::size_t>(b)); });
 }
 
 // f(k) for a few large tasks k in [0, n_tasks) that the caller lists
