@@ -2,11 +2,13 @@
 // line per case. Measures; asserts nothing (see bench/README.md).
 //
 //   talus_bench [--steps N] [--repeat R] [--case NAME] [--threads T[,T...]] [--busy N]
-//               [--profile] [--all-nodes]
+//               [--profile] [--all-nodes] [--material-path plugin|inline_hooke]
 //   mpirun -np N talus_bench ...   (the cases spread over N ranks; rank 0 prints)
 #include <talus/input/scenario_yaml.hpp>
 #include <talus/input/yaml_input.hpp>
 #include <talus/mpm/simulation.hpp>
+
+#include "inline_hooke.hpp"
 
 #include <fmt/format.h>
 
@@ -29,14 +31,6 @@
 #include <optional>
 #include <string>
 #include <vector>
-
-// Which material update was measured: the plugins through the C ABI, or
-// (the benchmark-only build) linear_elastic inlined into the host.
-#ifdef TALUS_BENCH_INLINE_HOOKE
-constexpr const char *kMaterialPath = "inline_hooke";
-#else
-constexpr const char *kMaterialPath = "plugin";
-#endif
 
 namespace {
 
@@ -268,6 +262,9 @@ int main(int argc, char **argv) {
     int steps = 25, repeat = 3;
     std::vector<int> thread_counts{0}; // 0: OpenMP's default
     bool profile = false, all_nodes = false;
+    // Which material update is measured: the plugins through the C ABI, or
+    // linear_elastic's done by the host (inline_hooke.hpp).
+    std::string material_path = "plugin";
     int busy = 0;
     std::string only;
     for (int i = 1; i < argc; ++i) {
@@ -304,7 +301,16 @@ int main(int argc, char **argv) {
             profile = true;
         else if (a == "--all-nodes")
             all_nodes = true;
-        else if (a == "--busy") {
+        else if (a == "--material-path") {
+            material_path = next();
+            if (material_path != "plugin" && material_path != "inline_hooke") {
+                std::fprintf(
+                    stderr,
+                    "talus_bench: --material-path expects plugin or inline_hooke, got '%s'\n",
+                    material_path.c_str());
+                return 2;
+            }
+        } else if (a == "--busy") {
             busy = std::atoi(next().c_str());
             if (busy < 0) {
                 std::fprintf(stderr, "talus_bench: --busy expects a count >= 0\n");
@@ -312,7 +318,8 @@ int main(int argc, char **argv) {
             }
         } else {
             std::fprintf(stderr, "usage: talus_bench [--steps N] [--repeat R] [--case NAME] "
-                                 "[--threads T[,T...]] [--busy N] [--profile] [--all-nodes]\n");
+                                 "[--threads T[,T...]] [--busy N] [--profile] [--all-nodes] "
+                                 "[--material-path plugin|inline_hooke]\n");
             return 2;
         }
     }
@@ -388,6 +395,7 @@ int main(int argc, char **argv) {
                 so.threads = threads;
                 so.comm = comm;
                 so.active_nodes_only = !all_nodes;
+                if (material_path == "inline_hooke") so.material_hook = talus::bench::inline_hooke;
                 // Every run starts from the scenario's initial state: a
                 // continued run would time a different state each time (a
                 // Mohr-Coulomb block goes from 0.3 % to 97 % plastic points
@@ -499,7 +507,7 @@ int main(int argc, char **argv) {
                             "\"halo_bytes_per_rank_step\": %.0f, "
                             "\"migration_bytes_per_rank_step\": %.0f, \"phase_shares\": {%s}}\n",
                             c.name.c_str(), c.dim, n, steps, comm.size(), used, isa.c_str(),
-                            kMaterialPath, busy, best, n * steps / best, n * steps / median,
+                            material_path.c_str(), busy, best, n * steps / best, n * steps / median,
                             particle_bytes / n, rss / n, barriers,
                             active_share / (static_cast<double>(repeat) * steps), halo_s, mig_s,
                             halo_b, mig_b, shares.c_str());

@@ -3,10 +3,6 @@
 #include <talus/material/crash_report.hpp>
 #include <talus/material/cut_step.hpp>
 
-#ifdef TALUS_BENCH_INLINE_HOOKE
-#include "bench_inline_hooke.hpp"
-#endif
-
 #include <algorithm>
 
 namespace talus {
@@ -22,9 +18,9 @@ double det3(const double *F) {
 } // namespace
 
 MaterialUpdate::MaterialUpdate(MaterialNames names, int batch_size, double characteristic_length,
-                               Isa isa)
+                               Isa isa, MaterialBlockHook hook)
     : names_(std::move(names)), batch_(static_cast<std::size_t>(std::max(1, batch_size))),
-      length_(characteristic_length), isa_(isa) {}
+      length_(characteristic_length), isa_(isa), hook_(hook) {}
 
 void MaterialUpdate::prepare(const std::vector<ParticleSet> &sets) {
     // The thread count may have changed since the last call
@@ -136,12 +132,9 @@ void MaterialUpdate::block(ParticleSet &s, std::size_t set, std::size_t begin, s
                     finite && inc.step > 0 && !inc.dilation};
     const Outputs out{&s.stress[6 * begin], ns ? scr.state.data() : nullptr};
     MaterialFailure failure;
-#ifdef TALUS_BENCH_INLINE_HOOKE
-    const bool inlined = bench_only::inline_hooke(*s.instance, count, in.stress, in.de, in.rho,
-                                                  out.stress, &s.c[begin]);
-#else
-    constexpr bool inlined = false;
-#endif
+    // One branch a block when no hook is installed.
+    const bool inlined =
+        hook_ && hook_(*s.instance, count, in.stress, in.de, in.rho, out.stress, &s.c[begin]);
     if (!inlined &&
         !advance(s, set, begin, count, inc.t, inc.dt, inc.step, 1.0, 0, in, out, scr, failure)) {
         // The step failed: the block's F and stress as the plugin found

@@ -12,6 +12,7 @@
 #include "parallel.hpp"
 
 #include <talus/material/plugin_loader.hpp>
+#include <talus/mpm/material_hook.hpp>
 #include <talus/mpm/particles.hpp>
 
 #include <array>
@@ -70,7 +71,9 @@ class MaterialUpdate {
     // `characteristic_length`: what the plugins see as each point's length
     // (the grid's cell size; talus_batch.characteristic_length); `isa`:
     // the instruction set of the kinematics (kinematics_block).
-    MaterialUpdate(MaterialNames names, int batch_size, double characteristic_length, Isa isa);
+    // `hook`: SolverOptions::material_hook, or null.
+    MaterialUpdate(MaterialNames names, int batch_size, double characteristic_length, Isa isa,
+                   MaterialBlockHook hook = nullptr);
 
     // The set-up call (talus_model.init_state, or update with dt = 0) for
     // points [begin, begin + count) of set s at time t: particles that
@@ -149,6 +152,7 @@ class MaterialUpdate {
     std::size_t batch_;
     double length_;
     Isa isa_;
+    MaterialBlockHook hook_;
     std::vector<Scratch> scratch_;
     long cut_steps_ = 0;
 };

@@ -138,8 +138,8 @@ Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options, const Sn
                    : initial_particles(sc, stages, first_id, instances, comm)),
       order(grid.geo, sets.size()), loads(sc, stages[0].conditions, Vec3{0, 0, 0}, 0.0),
       domain(domain_of(sc, stages[0].conditions)), isa(talus::kernel_isa()),
-      materials(names_of(sc, sets), opt.batch_size, sc.cell, isa), variant(variant_of(sc.solver)),
-      velocity_motion(velocity_motion_of(sc.solver)) {
+      materials(names_of(sc, sets), opt.batch_size, sc.cell, isa, opt.material_hook),
+      variant(variant_of(sc.solver)), velocity_motion(velocity_motion_of(sc.solver)) {
     for (const GroupSpec &g : sc.groups)
         group_names.push_back(g.name);
     if (opt.adapt_threads && !comm.distributed() && par::max_threads() > 1)

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <talus/mpm/comm.hpp>
+#include <talus/mpm/material_hook.hpp>
 #include <talus/mpm/particles.hpp>
 #include <talus/mpm/scenario.hpp>
 #include <talus/mpm/snapshot.hpp>
@@ -83,6 +84,8 @@ struct SolverOptions {
     // particle_count() and grid_mass() are collective: every rank calls
     // them, in the same order; sets() are this rank's particles.
     Comm comm = Comm::serial();
+    // Null, the default: every block goes to its plugin.
+    MaterialBlockHook material_hook = nullptr;
 };
 
 // What one rank sent to the others, summed over the steps so far.

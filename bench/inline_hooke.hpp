@@ -1,28 +1,24 @@
-// Benchmark-only (the TALUS_BENCH_INLINE_HOOKE build, bench/README.md):
-// linear_elastic's update done inside the material update, with no plugin
-// call, SDK loop or host screen, so that an A/B against the normal build
-// measures what the plugin path costs. Never part of the product: that
-// build makes talus_bench alone.
+// linear_elastic's update done by the host, with no plugin call, SDK loop
+// or host screen: talus_bench installs it (--material-path inline_hooke) as
+// the solver's material hook (talus/mpm/material_hook.hpp), so that an A/B
+// against the plugin path measures what that path costs (bench/README.md,
+// "Plugin overhead").
 #pragma once
-
-#ifndef TALUS_BENCH_INLINE_HOOKE
-#error "bench_inline_hooke.hpp belongs to the benchmark-only build"
-#endif
 
 #include <talus/material/plugin_loader.hpp>
 
 #include <cmath>
 #include <cstddef>
 
-namespace talus::bench_only {
+namespace talus::bench {
 
 // For an instance of linear_elastic: the stress (and wave speed) of
 // `count` points, with the plugin's own arithmetic
-// (plugins/linear_elastic), so the results are the same to the bit.
-// Returns false, doing nothing, for any other model. The model check and
-// the moduli are per call, i.e. per block of 128 points: tens of
-// nanoseconds against the block's ~10 microseconds, so they do not bias
-// the A/B.
+// (plugins/linear_elastic), so the results are the same to the bit
+// (tests/unit/mpm/test_material_hook.cpp). Returns false, doing nothing,
+// for any other model. The model check and the moduli are per call, i.e.
+// per block of 128 points: tens of nanoseconds against the block's
+// microseconds, so they do not bias the A/B.
 inline bool inline_hooke(const MaterialInstance &m, std::size_t count, const double *stress_in,
                          const double *de, const double *rho, double *stress_out, double *c) {
     if (m.model().id() != "linear_elastic") return false;
@@ -44,4 +40,4 @@ inline bool inline_hooke(const MaterialInstance &m, std::size_t count, const dou
     return true;
 }
 
-} // namespace talus::bench_only
+} // namespace talus::bench
