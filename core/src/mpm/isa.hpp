@@ -1,7 +1,8 @@
 // The instruction sets the transfer kernels are compiled for, and the one
 // a run uses: the widest this CPU has, chosen once at set-up. The release
 // build stays portable (any x86-64); its P2G and G2P kernels exist in three
-// versions (function-level target attributes, see p2g.cpp and g2p.cpp).
+// versions (function-level target attributes, see p2g_kernels.hpp and
+// g2p_kernels.hpp).
 // TALUS_KERNEL_ISA=generic|avx2|avx512 forces one (tests, comparisons);
 // asking for one the CPU lacks is refused.
 #pragma once

@@ -509,7 +509,7 @@ struct StencilPack {
     // Stencil::eval<true> computes them, S::eval_bounded on every axis.
     // On an axis where such a particle is interior that is S::eval, the
     // uniform values above, but computed here, in code for the baseline:
-    // p2g.cpp and g2p.cpp contract the kernels' multiply-adds where the
+    // the P2G and G2P kernels contract their multiply-adds where the
     // target has them, eval_bounded (baseline) does not, and this keeps a
     // particle's weights the bits they had when such a pack went particle
     // by particle. It did, all N of them, outside the lanes: 11.5 % of the
@@ -592,17 +592,23 @@ struct OutOfLine<Isa::avx512> {
     }
 };
 
+// Runs f.template operator()<S>() for the run's kernel, in dimension D.
+template <int D, class F>
+void with_shape(ShapeKind shape, F &&f) {
+    switch (shape) {
+    case ShapeKind::linear: f.template operator()<LinearShape>(); break;
+    case ShapeKind::gimp: f.template operator()<GimpShape>(); break;
+    case ShapeKind::bspline2: f.template operator()<BSpline2Shape>(); break;
+    case ShapeKind::bspline3: f.template operator()<BSpline3Shape>(); break;
+    }
+}
+
 // Runs f.template operator()<D, S>() for the run's dimension and kernel:
 // the one runtime choice per pass that selects the compiled kernels.
 template <class F>
 void with_kernel(int dim, ShapeKind shape, F &&f) {
     auto by_shape = [&]<int D>() {
-        switch (shape) {
-        case ShapeKind::linear: f.template operator()<D, LinearShape>(); break;
-        case ShapeKind::gimp: f.template operator()<D, GimpShape>(); break;
-        case ShapeKind::bspline2: f.template operator()<D, BSpline2Shape>(); break;
-        case ShapeKind::bspline3: f.template operator()<D, BSpline3Shape>(); break;
-        }
+        with_shape<D>(shape, [&]<class S>() { f.template operator()<D, S>(); });
     };
     if (dim == 2)
         by_shape.template operator()<2>();
