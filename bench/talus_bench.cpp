@@ -3,6 +3,7 @@
 //
 //   talus_bench [--steps N] [--repeat R] [--case NAME] [--threads T[,T...]] [--busy N]
 //               [--profile] [--all-nodes] [--material-path plugin|inline_hooke]
+//   talus_bench --scenario NAME   (prints the case's scenario, for `talus run`)
 //   mpirun -np N talus_bench ...   (the cases spread over N ranks; rank 0 prints)
 #include <talus/input/scenario_yaml.hpp>
 #include <talus/input/yaml_input.hpp>
@@ -267,6 +268,7 @@ int main(int argc, char **argv) {
     std::string material_path = "plugin";
     int busy = 0;
     std::string only;
+    bool print_scenario = false;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         auto next = [&]() -> std::string {
@@ -297,7 +299,10 @@ int main(int argc, char **argv) {
             }
         } else if (a == "--case")
             only = next();
-        else if (a == "--profile")
+        else if (a == "--scenario") {
+            only = next();
+            print_scenario = true;
+        } else if (a == "--profile")
             profile = true;
         else if (a == "--all-nodes")
             all_nodes = true;
@@ -319,7 +324,7 @@ int main(int argc, char **argv) {
         } else {
             std::fprintf(stderr, "usage: talus_bench [--steps N] [--repeat R] [--case NAME] "
                                  "[--threads T[,T...]] [--busy N] [--profile] [--all-nodes] "
-                                 "[--material-path plugin|inline_hooke]\n");
+                                 "[--material-path plugin|inline_hooke] | --scenario NAME\n");
             return 2;
         }
     }
@@ -375,6 +380,16 @@ int main(int argc, char **argv) {
         for (const Case &c : cases)
             std::fprintf(stderr, ", %s", c.name.c_str());
         std::fprintf(stderr, "\n");
+        return 2;
+    }
+    if (print_scenario) {
+        for (const Case &c : cases)
+            if (c.name == only) {
+                std::fputs(c.yaml.c_str(), stdout);
+                return 0;
+            }
+        std::fprintf(stderr, "talus_bench: --scenario takes a case of a scenario, not '%s'\n",
+                     only.c_str());
         return 2;
     }
     const BusyProcesses beside(busy);
