@@ -87,6 +87,79 @@ Stage held_stresses() {
 
 double number(const yaml::Node &n, std::string_view key) { return n.require(key).as_double(); }
 
+// What a simple shear holds besides the lateral strains: `constant:`.
+bool constant_volume(const yaml::Node &node) {
+    const std::string constant =
+        node.get("constant").defined() ? node.get("constant").as_string() : "volume";
+    if (constant != "volume" && constant != "normal_stress")
+        node.get("constant").fail("expected volume or normal_stress");
+    return constant == "volume";
+}
+
+// The axes of a preset: the axis a, the laterals l1, l2, and the shear
+// component on the plane normal to the axis.
+struct Axes {
+    int a, l1, l2, shear;
+};
+
+// N cycles 0 -> +A -> -A -> 0, `increments` per quarter cycle, from the
+// stage `s` that `finish` read (its duration, increments, zero_strain).
+std::vector<Stage> cyclic_stages(const yaml::Node &node, const Stage &s, bool triaxial, Axes x) {
+    const int a = x.a, l1 = x.l1, l2 = x.l2, shear = x.shear;
+    if (node.get("until").defined())
+        node.get("until").fail("a cyclic preset runs its cycles; use a general stage with "
+                               "until: to stop on a condition");
+    const double A = number(node, "amplitude");
+    const std::string control =
+        node.get("control").defined() ? node.get("control").as_string() : "strain";
+    if (control != "strain" && control != "stress")
+        node.get("control").fail("expected strain or stress");
+    const long cycles = node.require("cycles").as_integer();
+    if (cycles < 1 || cycles > 100000) node.require("cycles").fail("expected 1 <= cycles <= 1e5");
+    Stage base = s;
+    if (triaxial) {
+        const bool drained = node.get("drained").defined() && node.get("drained").as_bool();
+        if (!drained) {
+            base.conditions[static_cast<std::size_t>(l1)] = volume_held();
+            base.conditions[static_cast<std::size_t>(l2)] = laterals_equal(l1, l2);
+        }
+    } else {
+        const bool volume = constant_volume(node);
+        base.conditions[static_cast<std::size_t>(l1)] = strain_change(l1, 0.0);
+        base.conditions[static_cast<std::size_t>(l2)] = strain_change(l2, 0.0);
+        if (volume) base.conditions[static_cast<std::size_t>(a)] = strain_change(a, 0.0);
+    }
+    // The driven condition for a change d of the cycled quantity.
+    auto driven = [&](double d) {
+        if (triaxial) {
+            if (control == "strain") return strain_change(a, -d);
+            // Undrained: q_a replaces the axial row (the laterals are
+            // tied to it by the volume and equality rows); drained: the
+            // cell pressure is held, so q_a changes with -sig_a alone.
+            return deviator_change(a, l1, l2, d);
+        }
+        return control == "strain" ? strain_change(shear, 0.5 * d) : stress_change(shear, d);
+    };
+    const int row = triaxial ? a : shear;
+    const double legs[3] = {A, -2.0 * A, A};
+    const long mult[3] = {1, 2, 1};
+    std::vector<Stage> out;
+    for (long k = 0; k < cycles; ++k)
+        for (int leg = 0; leg < 3; ++leg) {
+            Stage st = base;
+            st.conditions[static_cast<std::size_t>(row)] = driven(legs[leg]);
+            st.duration = s.duration * static_cast<double>(mult[leg]) / 4.0;
+            st.increments = s.increments * mult[leg];
+            st.zero_strain = s.zero_strain && k == 0 && leg == 0;
+            st.name = fmt::format("cycle {} {}", k + 1,
+                                  leg == 0   ? "to +amplitude"
+                                  : leg == 1 ? "to -amplitude"
+                                             : "back to zero");
+            out.push_back(st);
+        }
+    return out;
+}
+
 } // namespace
 
 std::vector<Stage> expand_preset(const yaml::Node &node, int axis) {
@@ -156,78 +229,20 @@ std::vector<Stage> expand_preset(const yaml::Node &node, int axis) {
         // no lateral strain; constant volume (axial strain held) or constant
         // normal stress.
         finish({"shear_strain", "constant"});
-        const std::string constant =
-            node.get("constant").defined() ? node.get("constant").as_string() : "volume";
-        if (constant != "volume" && constant != "normal_stress")
-            node.get("constant").fail("expected volume or normal_stress");
+        const bool volume = constant_volume(node);
         s.conditions[static_cast<std::size_t>(l1)] = strain_change(l1, 0.0);
         s.conditions[static_cast<std::size_t>(l2)] = strain_change(l2, 0.0);
-        if (constant == "volume") s.conditions[static_cast<std::size_t>(a)] = strain_change(a, 0.0);
+        if (volume) s.conditions[static_cast<std::size_t>(a)] = strain_change(a, 0.0);
         s.conditions[static_cast<std::size_t>(shear)] =
             strain_change(shear, 0.5 * number(node, "shear_strain"));
         until();
         out.push_back(s);
     } else if (preset == "cyclic_triaxial" || preset == "cyclic_simple_shear") {
-        // N cycles 0 -> +A -> -A -> 0, `increments` per quarter cycle.
         const bool triaxial = preset == "cyclic_triaxial";
         finish(triaxial
                    ? std::vector<std::string_view>{"amplitude", "control", "cycles", "drained"}
                    : std::vector<std::string_view>{"amplitude", "control", "cycles", "constant"});
-        if (node.get("until").defined())
-            node.get("until").fail("a cyclic preset runs its cycles; use a general stage with "
-                                   "until: to stop on a condition");
-        const double A = number(node, "amplitude");
-        const std::string control =
-            node.get("control").defined() ? node.get("control").as_string() : "strain";
-        if (control != "strain" && control != "stress")
-            node.get("control").fail("expected strain or stress");
-        const long cycles = node.require("cycles").as_integer();
-        if (cycles < 1 || cycles > 100000)
-            node.require("cycles").fail("expected 1 <= cycles <= 1e5");
-        Stage base = s;
-        if (triaxial) {
-            const bool drained = node.get("drained").defined() && node.get("drained").as_bool();
-            if (!drained) {
-                base.conditions[static_cast<std::size_t>(l1)] = volume_held();
-                base.conditions[static_cast<std::size_t>(l2)] = laterals_equal(l1, l2);
-            }
-        } else {
-            const std::string constant =
-                node.get("constant").defined() ? node.get("constant").as_string() : "volume";
-            if (constant != "volume" && constant != "normal_stress")
-                node.get("constant").fail("expected volume or normal_stress");
-            base.conditions[static_cast<std::size_t>(l1)] = strain_change(l1, 0.0);
-            base.conditions[static_cast<std::size_t>(l2)] = strain_change(l2, 0.0);
-            if (constant == "volume")
-                base.conditions[static_cast<std::size_t>(a)] = strain_change(a, 0.0);
-        }
-        // The driven condition for a change d of the cycled quantity.
-        auto driven = [&](double d) {
-            if (triaxial) {
-                if (control == "strain") return strain_change(a, -d);
-                // Undrained: q_a replaces the axial row (the laterals are
-                // tied to it by the volume and equality rows); drained: the
-                // cell pressure is held, so q_a changes with -sig_a alone.
-                return deviator_change(a, l1, l2, d);
-            }
-            return control == "strain" ? strain_change(shear, 0.5 * d) : stress_change(shear, d);
-        };
-        const int row = triaxial ? a : shear;
-        const double legs[3] = {A, -2.0 * A, A};
-        const long mult[3] = {1, 2, 1};
-        for (long k = 0; k < cycles; ++k)
-            for (int leg = 0; leg < 3; ++leg) {
-                Stage st = base;
-                st.conditions[static_cast<std::size_t>(row)] = driven(legs[leg]);
-                st.duration = s.duration * static_cast<double>(mult[leg]) / 4.0;
-                st.increments = s.increments * mult[leg];
-                st.zero_strain = s.zero_strain && k == 0 && leg == 0;
-                st.name = fmt::format("cycle {} {}", k + 1,
-                                      leg == 0   ? "to +amplitude"
-                                      : leg == 1 ? "to -amplitude"
-                                                 : "back to zero");
-                out.push_back(st);
-            }
+        out = cyclic_stages(node, s, triaxial, {a, l1, l2, shear});
     } else {
         constexpr std::array<std::string_view, 8> known = {
             "isotropic",           "oedometer",    "triaxial_drained", "triaxial_undrained",

@@ -493,6 +493,31 @@ std::size_t material_index(const yaml::Node &n, const Scenario &s) {
                        guess.empty() ? "" : fmt::format(" (did you mean '{}'?)", guess)));
 }
 
+// A stage's end at rest: stages[].until.
+Quiescence read_until(const yaml::Node &u, const std::string &prefix) {
+    allow(u, "stages[].until");
+    Quiescence q;
+    q.origin = origin_of(u, prefix + "until");
+    const yaml::Node r = u.require("kinetic_energy_ratio");
+    q.kinetic_energy_ratio = r.as_double();
+    if (!(q.kinetic_energy_ratio > 0.0 && q.kinetic_energy_ratio < 1.0))
+        r.fail(fmt::format("expected 0 < kinetic_energy_ratio < 1 (1e-5 is usual), got {}",
+                           q.kinetic_energy_ratio));
+    if (const yaml::Node h = u.get("hold"); h.defined()) q.hold = positive(h, "hold (s)");
+    if (const yaml::Node o = u.get("otherwise"); o.defined())
+        q.stop_if_not_met = choose<bool>(o, {{"stop", true}, {"continue", false}});
+    return q;
+}
+
+// What a stage resets as it begins: stages[].reset.
+void read_reset(const yaml::Node &r, StageSpec &st) {
+    r.expect_sequence();
+    for (std::size_t i = 0; i < r.size(); ++i) {
+        const bool disp = choose<bool>(r.at(i), {{"displacement", true}, {"velocity", false}});
+        (disp ? st.reset_displacement : st.reset_velocity) = true;
+    }
+}
+
 void read_stages(const yaml::Node &list, Scenario &s) {
     list.expect_sequence();
     if (list.size() == 0) list.fail("expected at least one stage");
@@ -521,20 +546,7 @@ void read_stages(const yaml::Node &list, Scenario &s) {
                                       st.name));
         st.duration = positive(e.require("duration"), "duration (s)");
         total += st.duration;
-        if (const yaml::Node u = e.get("until"); u.defined()) {
-            allow(u, "stages[].until");
-            Quiescence q;
-            q.origin = origin_of(u, prefix + "until");
-            const yaml::Node r = u.require("kinetic_energy_ratio");
-            q.kinetic_energy_ratio = r.as_double();
-            if (!(q.kinetic_energy_ratio > 0.0 && q.kinetic_energy_ratio < 1.0))
-                r.fail(fmt::format("expected 0 < kinetic_energy_ratio < 1 (1e-5 is usual), got {}",
-                                   q.kinetic_energy_ratio));
-            if (const yaml::Node h = u.get("hold"); h.defined()) q.hold = positive(h, "hold (s)");
-            if (const yaml::Node o = u.get("otherwise"); o.defined())
-                q.stop_if_not_met = choose<bool>(o, {{"stop", true}, {"continue", false}});
-            st.until = q;
-        }
+        if (const yaml::Node u = e.get("until"); u.defined()) st.until = read_until(u, prefix);
         read_conditions(e, prefix, s, current);
         st.conditions = current;
         const bool changes =
@@ -607,14 +619,7 @@ void read_stages(const yaml::Node &list, Scenario &s) {
                 st.set_material.push_back({g, to});
             }
         }
-        if (const yaml::Node r = e.get("reset"); r.defined()) {
-            r.expect_sequence();
-            for (std::size_t i = 0; i < r.size(); ++i) {
-                const bool disp =
-                    choose<bool>(r.at(i), {{"displacement", true}, {"velocity", false}});
-                (disp ? st.reset_displacement : st.reset_velocity) = true;
-            }
-        }
+        if (const yaml::Node r = e.get("reset"); r.defined()) read_reset(r, st);
         bool any = false;
         for (std::size_t g = 0; g < G; ++g)
             any = any || present(g);
@@ -650,33 +655,8 @@ void read_stages(const yaml::Node &list, Scenario &s) {
     s.end_origin = origin_of(list, "stages");
 }
 
-} // namespace
-
-std::vector<std::string> scenario_schema() {
-    std::vector<std::string> out;
-    for (const auto &[path, ks] : schema())
-        for (auto k : ks)
-            out.push_back(path.empty() ? std::string(k) : std::string(path) + "." + std::string(k));
-    return out;
-}
-
-Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
-    Scenario s;
-    s.file = root.file();
-    allow(root, "");
-    const yaml::Node version = root.require("talus");
-    if (version.as_integer() != 1)
-        version.fail(fmt::format("unsupported file format version {}; this talus reads version 1",
-                                 version.as_integer()));
-    const yaml::Node dim = root.require("dimension");
-    s.dim = static_cast<int>(dim.as_integer());
-    if (s.dim != 2 && s.dim != 3)
-        dim.fail(fmt::format("expected 2 (plane strain) or 3, got {}", s.dim));
-
-    if (const yaml::Node plugins = root.get("plugins"); plugins.defined())
-        load_plugin_list(plugins, registry);
-
-    // Grid.
+// The uniform grid: origin, size (whole cells) and cell size.
+void read_grid(const yaml::Node &root, Scenario &s) {
     const yaml::Node grid = root.require("grid");
     allow(grid, "grid");
     s.grid_origin = origin_of(grid);
@@ -696,8 +676,10 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
                             s.size[static_cast<std::size_t>(d)], "xyz"[d], s.cell, n));
         if (std::round(n) > 1e6) cell.fail("more than 1e6 cells in one direction");
     }
+}
 
-    // Constants, for the expressions below.
+// Named constants, for the expressions of position.
+void read_constants(const yaml::Node &root, Scenario &s) {
     if (const yaml::Node cs = root.get("constants"); cs.defined()) {
         cs.expect_map();
         for (const std::string &name : cs.keys()) {
@@ -707,8 +689,10 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
             s.constants.push_back({name, c.as_double()});
         }
     }
+}
 
-    // Materials.
+// Each material: its model, parameters checked by the plugin at their place.
+void read_materials(const yaml::Node &root, PluginRegistry &registry, Scenario &s) {
     const yaml::Node mats = root.require("materials");
     mats.expect_map();
     for (const std::string &name : mats.keys()) {
@@ -721,77 +705,81 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
         s.materials.push_back(std::move(nm));
     }
     if (s.materials.empty()) mats.fail("expected at least one material");
+}
 
-    // Groups.
+// One group: its material, shape, particles per cell and initial fields.
+GroupSpec read_group(const yaml::Node &g, const std::string &name, const Scenario &s) {
+    allow(g, "groups.*");
+    GroupSpec gs;
+    gs.name = name;
+    gs.origin = origin_of(g, "groups." + name);
+    const yaml::Node mat = g.require("material");
+    const std::string mname = mat.as_string();
+    std::vector<std::string> mnames;
+    bool found = false;
+    for (std::size_t i = 0; i < s.materials.size(); ++i) {
+        mnames.push_back(s.materials[i].name);
+        if (s.materials[i].name == mname) {
+            gs.material = i;
+            found = true;
+        }
+    }
+    if (!found) {
+        const std::string guess = yaml::closest_match(mname, std::span<const std::string>(mnames));
+        mat.fail(fmt::format("no material named '{}' under materials{}", mname,
+                             guess.empty() ? "" : fmt::format(" (did you mean '{}'?)", guess)));
+    }
+    gs.shape = read_shape(g.require("shape"), s.dim);
+    gs.shape_origin = origin_of(g.require("shape"), "groups." + name + ".shape");
+    if (const yaml::Node ppc = g.get("particles_per_cell"); ppc.defined()) {
+        const long long n = ppc.as_integer();
+        if (n < 1 || n > 16)
+            ppc.fail(fmt::format("expected 1 <= particles_per_cell <= 16, got {}", n));
+        gs.particles_per_cell = static_cast<int>(n);
+    }
+    if (const yaml::Node v = g.get("velocity"); v.defined()) {
+        gs.velocity = read_velocity(v, s);
+        gs.velocity_origin = origin_of(v, "groups." + name + ".velocity");
+    }
+    if (const yaml::Node w = g.get("angular_velocity"); w.defined()) {
+        if (s.dim == 2)
+            gs.angular_velocity = {0.0, 0.0, w.as_double()};
+        else
+            gs.angular_velocity = vec(w, 3, "rad/s");
+        // The fastest point of the rigid rotation: |w| times the largest
+        // distance from the centre of the shape's bounding box.
+        const Box bb = gs.shape.bounds(s.dim);
+        double r2 = 0.0;
+        for (int d = 0; d < s.dim; ++d)
+            r2 += std::pow(
+                0.5 * (bb.max[static_cast<std::size_t>(d)] - bb.min[static_cast<std::size_t>(d)]),
+                2);
+        const Vec3 &wv = gs.angular_velocity;
+        const double wn = std::sqrt(wv[0] * wv[0] + wv[1] * wv[1] + wv[2] * wv[2]);
+        check_speed(w, {wn * std::sqrt(r2), 0.0, 0.0});
+    }
+    if (const yaml::Node st = g.get("initial_stress"); st.defined()) {
+        gs.stress = read_initial_stress(st, s);
+        gs.stress_origin = origin_of(st, "groups." + name + ".initial_stress");
+    }
+    if (const yaml::Node st = g.get("initial_state"); st.defined()) {
+        gs.initial_state = read_group_state(st, s, s.materials[gs.material]);
+        gs.state_origin = origin_of(st, "groups." + name + ".initial_state");
+    }
+    return gs;
+}
+
+void read_groups(const yaml::Node &root, Scenario &s) {
     const yaml::Node groups = root.require("groups");
     groups.expect_map();
     for (const std::string &name : groups.keys()) {
-        const yaml::Node g = groups.get(name);
-        allow(g, "groups.*");
-        GroupSpec gs;
-        gs.name = name;
-        gs.origin = origin_of(g, "groups." + name);
-        const yaml::Node mat = g.require("material");
-        const std::string mname = mat.as_string();
-        std::vector<std::string> mnames;
-        bool found = false;
-        for (std::size_t i = 0; i < s.materials.size(); ++i) {
-            mnames.push_back(s.materials[i].name);
-            if (s.materials[i].name == mname) {
-                gs.material = i;
-                found = true;
-            }
-        }
-        if (!found) {
-            const std::string guess =
-                yaml::closest_match(mname, std::span<const std::string>(mnames));
-            mat.fail(fmt::format("no material named '{}' under materials{}", mname,
-                                 guess.empty() ? "" : fmt::format(" (did you mean '{}'?)", guess)));
-        }
-        gs.shape = read_shape(g.require("shape"), s.dim);
-        gs.shape_origin = origin_of(g.require("shape"), "groups." + name + ".shape");
-        if (const yaml::Node ppc = g.get("particles_per_cell"); ppc.defined()) {
-            const long long n = ppc.as_integer();
-            if (n < 1 || n > 16)
-                ppc.fail(fmt::format("expected 1 <= particles_per_cell <= 16, got {}", n));
-            gs.particles_per_cell = static_cast<int>(n);
-        }
-        if (const yaml::Node v = g.get("velocity"); v.defined()) {
-            gs.velocity = read_velocity(v, s);
-            gs.velocity_origin = origin_of(v, "groups." + name + ".velocity");
-        }
-        if (const yaml::Node w = g.get("angular_velocity"); w.defined()) {
-            if (s.dim == 2)
-                gs.angular_velocity = {0.0, 0.0, w.as_double()};
-            else
-                gs.angular_velocity = vec(w, 3, "rad/s");
-            // The fastest point of the rigid rotation: |w| times the largest
-            // distance from the centre of the shape's bounding box.
-            const Box bb = gs.shape.bounds(s.dim);
-            double r2 = 0.0;
-            for (int d = 0; d < s.dim; ++d)
-                r2 += std::pow(0.5 * (bb.max[static_cast<std::size_t>(d)] -
-                                      bb.min[static_cast<std::size_t>(d)]),
-                               2);
-            const Vec3 &wv = gs.angular_velocity;
-            const double wn = std::sqrt(wv[0] * wv[0] + wv[1] * wv[1] + wv[2] * wv[2]);
-            check_speed(w, {wn * std::sqrt(r2), 0.0, 0.0});
-        }
-        if (const yaml::Node st = g.get("initial_stress"); st.defined()) {
-            gs.stress = read_initial_stress(st, s);
-            gs.stress_origin = origin_of(st, "groups." + name + ".initial_stress");
-        }
-        if (const yaml::Node st = g.get("initial_state"); st.defined()) {
-            gs.initial_state = read_group_state(st, s, s.materials[gs.material]);
-            gs.state_origin = origin_of(st, "groups." + name + ".initial_state");
-        }
-        s.groups.push_back(std::move(gs));
+        s.groups.push_back(read_group(groups.get(name), name, s));
     }
     if (s.groups.empty()) groups.fail("expected at least one group");
+}
 
-    read_conditions(root, "", s, s.conditions);
-
-    // Solver.
+// The scheme, transfer, shape function, time step and rank balance.
+void read_solver(const yaml::Node &root, Scenario &s) {
     if (const yaml::Node sv = root.get("solver"); sv.defined()) {
         allow(sv, "solver");
         SolverSpec &p = s.solver;
@@ -882,7 +870,10 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
             }
         }
     }
+}
 
+// The run's end: time.end, or the stages' durations.
+void read_time(const yaml::Node &root, Scenario &s) {
     if (const yaml::Node st = root.get("stages"); st.defined()) {
         if (const yaml::Node time = root.get("time"); time.defined())
             time.fail("with stages, each stage gives its duration and the run ends with the last "
@@ -894,7 +885,9 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
         s.end_time = positive(time.require("end"), "end (s)");
         s.end_origin = origin_of(time.require("end"));
     }
+}
 
+void read_checkpoint(const yaml::Node &root, Scenario &s) {
     if (const yaml::Node ck = root.get("checkpoint"); ck.defined()) {
         allow(ck, "checkpoint");
         CheckpointSpec &c = s.checkpoint;
@@ -916,7 +909,55 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
             c.keep = static_cast<int>(k);
         }
     }
+}
 
+// The state variables written to the VTK output.
+void read_output_state(const yaml::Node &st, Scenario &s) {
+    st.expect_sequence();
+    s.output.all_flagged_state = false;
+    for (std::size_t i = 0; i < st.size(); ++i) {
+        const yaml::Node e = st.at(i);
+        const std::string name = e.as_string();
+        std::vector<std::string> known;
+        for (const auto &m : s.materials)
+            for (const auto &v : m.spec.state.vars)
+                known.push_back(v.name);
+        if (std::find(known.begin(), known.end(), name) == known.end()) {
+            const std::string guess =
+                yaml::closest_match(name, std::span<const std::string>(known));
+            e.fail(fmt::format("no material of this scenario has a state variable '{}'{}", name,
+                               guess.empty() ? "" : fmt::format(" (did you mean '{}'?)", guess)));
+        }
+        s.output.state_fields.push_back(name);
+    }
+}
+
+void read_probes(const yaml::Node &pr, Scenario &s) {
+    pr.expect_sequence();
+    for (std::size_t i = 0; i < pr.size(); ++i) {
+        const yaml::Node e = pr.at(i);
+        allow(e, "output.probes[]");
+        Probe p;
+        p.name = e.require("name").as_string();
+        p.origin = origin_of(e, fmt::format("output.probes[{}]", i));
+        const bool part = e.has("particle"), com = e.has("centre_of_mass");
+        if (part == com)
+            e.fail("expected exactly one of particle: [x, y(, z)] or centre_of_mass: group");
+        if (part) {
+            p.kind = Probe::Kind::particle;
+            p.point = vec(e.require("particle"), s.dim, "m");
+        } else {
+            p.kind = Probe::Kind::centre_of_mass;
+            p.group = group_index(e.require("centre_of_mass"), s);
+        }
+        for (const Probe &q : s.output.probes)
+            if (q.name == p.name)
+                e.require("name").fail(fmt::format("probe name '{}' used twice", p.name));
+        s.output.probes.push_back(std::move(p));
+    }
+}
+
+void read_output(const yaml::Node &root, Scenario &s) {
     if (const yaml::Node out = root.get("output"); out.defined()) {
         allow(out, "output");
         if (const yaml::Node n = out.get("every"); n.defined()) {
@@ -924,52 +965,46 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
             s.output.every_origin = origin_of(n);
         }
         if (const yaml::Node n = out.get("vtk"); n.defined()) s.output.vtk = n.as_bool();
-        if (const yaml::Node st = out.get("state"); st.defined()) {
-            st.expect_sequence();
-            s.output.all_flagged_state = false;
-            for (std::size_t i = 0; i < st.size(); ++i) {
-                const yaml::Node e = st.at(i);
-                const std::string name = e.as_string();
-                std::vector<std::string> known;
-                for (const auto &m : s.materials)
-                    for (const auto &v : m.spec.state.vars)
-                        known.push_back(v.name);
-                if (std::find(known.begin(), known.end(), name) == known.end()) {
-                    const std::string guess =
-                        yaml::closest_match(name, std::span<const std::string>(known));
-                    e.fail(fmt::format(
-                        "no material of this scenario has a state variable '{}'{}", name,
-                        guess.empty() ? "" : fmt::format(" (did you mean '{}'?)", guess)));
-                }
-                s.output.state_fields.push_back(name);
-            }
-        }
-        if (const yaml::Node pr = out.get("probes"); pr.defined()) {
-            pr.expect_sequence();
-            for (std::size_t i = 0; i < pr.size(); ++i) {
-                const yaml::Node e = pr.at(i);
-                allow(e, "output.probes[]");
-                Probe p;
-                p.name = e.require("name").as_string();
-                p.origin = origin_of(e, fmt::format("output.probes[{}]", i));
-                const bool part = e.has("particle"), com = e.has("centre_of_mass");
-                if (part == com)
-                    e.fail(
-                        "expected exactly one of particle: [x, y(, z)] or centre_of_mass: group");
-                if (part) {
-                    p.kind = Probe::Kind::particle;
-                    p.point = vec(e.require("particle"), s.dim, "m");
-                } else {
-                    p.kind = Probe::Kind::centre_of_mass;
-                    p.group = group_index(e.require("centre_of_mass"), s);
-                }
-                for (const Probe &q : s.output.probes)
-                    if (q.name == p.name)
-                        e.require("name").fail(fmt::format("probe name '{}' used twice", p.name));
-                s.output.probes.push_back(std::move(p));
-            }
-        }
+        if (const yaml::Node st = out.get("state"); st.defined()) read_output_state(st, s);
+        if (const yaml::Node pr = out.get("probes"); pr.defined()) read_probes(pr, s);
     }
+}
+
+} // namespace
+
+std::vector<std::string> scenario_schema() {
+    std::vector<std::string> out;
+    for (const auto &[path, ks] : schema())
+        for (auto k : ks)
+            out.push_back(path.empty() ? std::string(k) : std::string(path) + "." + std::string(k));
+    return out;
+}
+
+Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
+    Scenario s;
+    s.file = root.file();
+    allow(root, "");
+    const yaml::Node version = root.require("talus");
+    if (version.as_integer() != 1)
+        version.fail(fmt::format("unsupported file format version {}; this talus reads version 1",
+                                 version.as_integer()));
+    const yaml::Node dim = root.require("dimension");
+    s.dim = static_cast<int>(dim.as_integer());
+    if (s.dim != 2 && s.dim != 3)
+        dim.fail(fmt::format("expected 2 (plane strain) or 3, got {}", s.dim));
+
+    if (const yaml::Node plugins = root.get("plugins"); plugins.defined())
+        load_plugin_list(plugins, registry);
+
+    read_grid(root, s);
+    read_constants(root, s);
+    read_materials(root, registry, s);
+    read_groups(root, s);
+    read_conditions(root, "", s, s.conditions);
+    read_solver(root, s);
+    read_time(root, s);
+    read_checkpoint(root, s);
+    read_output(root, s);
     return s;
 }
 
