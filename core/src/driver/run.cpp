@@ -928,6 +928,198 @@ void write_or_stop(RunOutput &out, const Simulation &sim) {
     }
 }
 
+// What a run refuses before any work (on every rank, agreed): a misspelt
+// --plot-field, a checkpoint of other binaries (unless --force-restart), a
+// missing folder to continue in, a previous run's files (unless --force).
+// Returns the final field's state offsets per material.
+std::vector<long> refuse_before_work(const Scenario &sc, const RunOptions &opt, const fs::path &dir,
+                                     std::ostream &log) {
+    std::vector<long> final_offsets;
+    // A misspelt field is refused before any work, not after the run.
+    if (!opt.final_field.empty() && !is_builtin_field(opt.final_field))
+        final_offsets = final_field_offsets(sc, opt.final_field);
+    else
+        final_offsets.assign(sc.materials.size(), -1);
+    // Refuse before any work: a previous run's files are never
+    // overwritten silently.
+    std::error_code ec;
+    if (opt.restart) {
+        const std::vector<std::string> diff =
+            identity_differences(*opt.restart, plugin_identities(sc));
+        if (!diff.empty()) {
+            std::string all;
+            for (const std::string &d : diff)
+                all += "\n  " + d;
+            if (!opt.force_restart)
+                throw Error(fmt::format(
+                    "the checkpoint was written by other binaries than this run would use:{}\n"
+                    "the run was not continued: a result made by two builds is not one "
+                    "result; pass --force-restart to continue anyway",
+                    all));
+            log << fmt::format("talus: warning: continuing with other binaries than the "
+                               "checkpoint's (--force-restart):{}\n",
+                               all);
+        }
+        if (!fs::is_directory(dir))
+            throw Error(fmt::format("{}: no such folder: the checkpoint's run output is not there",
+                                    dir.string()));
+    } else if (fs::exists(dir, ec)) {
+        if (!fs::is_directory(dir, ec))
+            throw Error(fmt::format("{}: exists and is not a directory", dir.string()));
+        std::vector<fs::path> previous;
+        for (const auto &e : fs::directory_iterator(dir, ec))
+            if (is_own_file(e.path())) previous.push_back(e.path());
+        if (ec)
+            throw Error(fmt::format("{}: cannot list the folder: {}", dir.string(), ec.message()));
+        std::sort(previous.begin(), previous.end());
+        if (!previous.empty() && !opt.force)
+            throw Error(fmt::format(
+                "{}: holds the output of a previous run ({} and {} more file(s)); "
+                "pass --force to overwrite it, or choose another --output-dir",
+                dir.string(), previous.front().filename().string(), previous.size() - 1));
+    }
+    return final_offsets;
+}
+
+// The previous run's files and checkpoints removed, the folder made (rank 0).
+void clear_previous_output(const fs::path &dir, const RunOptions &opt) {
+    std::error_code ec;
+    if (!opt.restart && fs::exists(dir / "checkpoints", ec))
+        for (const auto &e : fs::directory_iterator(dir / "checkpoints", ec))
+            if (e.path().extension() == ".h5" && !fs::remove(e.path(), ec) && ec)
+                throw Error(fmt::format("{}: cannot remove the previous run's checkpoint: {}",
+                                        e.path().string(), ec.message()));
+    if (!opt.restart && fs::exists(dir, ec)) {
+        std::vector<fs::path> old;
+        for (const auto &e : fs::directory_iterator(dir, ec))
+            if (is_own_file(e.path())) old.push_back(e.path());
+        for (const fs::path &p : old)
+            remove_own(p, "the previous run's file");
+    }
+    make_folder(dir);
+}
+
+// A run whose thread count the governor changed says so: its speed
+// depends on it. (Its probes alone, a few steps each on fewer threads, are
+// not worth a line.)
+void report_thread_use(const Simulation &sim, std::ostream &log) {
+    const Simulation::ThreadUse use = sim.thread_use();
+    if (use.changes == 0) return;
+    std::string counts;
+    for (std::size_t k = 1; k < use.steps_at.size(); ++k)
+        if (use.steps_at[k] > 0)
+            counts += fmt::format("{}{} step(s) on {} thread(s)", counts.empty() ? "" : ", ",
+                                  use.steps_at[k], k);
+    log << fmt::format("talus: threads chosen by the steps' measured times beside the "
+                       "machine's other load: {} ({} change(s); --threads N fixes them)\n",
+                       counts, use.changes);
+}
+
+// A stage with until: that did not come to rest: the run stops (agreed on
+// every rank) or, with until.otherwise: continue, warns and goes on.
+void not_at_rest(const StageSpec &stage, const Simulation &sim, const RunOutput &out,
+                 const Comm &comm, std::ostream &log) {
+    const std::string what = fmt::format(
+        "stage '{}' did not come to rest within its duration of {:g} s: the kinetic "
+        "energy ratio is {:.3g} at t = {:.6g} s, the limit {:.3g}{}; the state at the "
+        "stage's end is in {}",
+        stage.name, stage.duration, sim.last_kinetic_energy_ratio(), sim.time(),
+        stage.until->kinetic_energy_ratio,
+        sim.quiet_since() ? fmt::format(" (below it since t = {:.6g} s, not yet for the hold time)",
+                                        *sim.quiet_since())
+                          : std::string(),
+        out.last_written());
+    if (stage.until->stop_if_not_met)
+        fail_together(comm,
+                      stage.until->origin.error(
+                          what + "; lengthen the duration or damp more, or set until.otherwise: "
+                                 "continue to go on regardless"));
+    log << stage.until->origin.warning(what + "; going on (until.otherwise: continue)") << '\n';
+}
+
+// After a SIGTERM or SIGINT (on any rank): a checkpoint, and the command
+// that continues the run, in the Interrupted the run ends with.
+void stop_if_signalled(const Comm &comm, Checkpoints &checkpoints, Simulation &sim, RunOutput &out,
+                       long next_k, long particle_steps) {
+    int sig = g_stop_signal;
+    // A launcher signals every rank, not at the same step: all stop at the
+    // first step's end where any has been.
+    if (comm.distributed()) sig = static_cast<int>(comm.max(static_cast<double>(sig)));
+    if (!sig) return;
+    const char *name = sig == SIGTERM ? "SIGTERM" : sig == SIGINT ? "SIGINT" : "a signal";
+    if (!checkpoints.possible()) // the same on every rank
+        throw Interrupted(fmt::format("talus: stopped by {} at step {} (t = {:.6g} s); no "
+                                      "checkpoint could be written: {}",
+                                      name, sim.steps(), sim.time(),
+                                      "the scenario's text could not be read"),
+                          sig);
+    const fs::path file = checkpoints.write(sim, out, next_k, particle_steps);
+    throw Interrupted(
+        fmt::format("talus: stopped by {} at step {} (t = {:.6g} s); the run continues with: "
+                    "{}talus run --restart {}{}",
+                    name, sim.steps(), sim.time(),
+                    comm.distributed() ? fmt::format("mpirun -np {} ", comm.size()) : std::string(),
+                    file.string(), comm.distributed() ? " (or on any other number of ranks)" : ""),
+        sig);
+}
+
+// One progress line: a live one on a terminal, a plain one in a log.
+void print_progress(const RunOptions &opt, const Simulation &sim, double end, double elapsed,
+                    double rate, double eta) {
+    std::fprintf(stderr,
+                 "%sstep %ld  t = %.4g / %.4g s  dt = %.3g s  elapsed %s  ETA %s  "
+                 "%.3g particle-steps/s%s",
+                 opt.progress_tty ? "\r" : "talus: progress: ", sim.steps(), sim.time(), end,
+                 sim.last_dt(), fmt_time(elapsed).c_str(), fmt_time(eta).c_str(), rate,
+                 opt.progress_tty ? "   " : "\n");
+    std::fflush(stderr);
+}
+
+RunSummary summary(const Simulation &sim, const Comm &comm, double seconds, long particle_steps,
+                   int outputs, int checkpoints, const fs::path &dir) {
+    RunSummary rs;
+    rs.steps = sim.steps();
+    rs.time = sim.time();
+    rs.seconds = seconds;
+    rs.particles = sim.particle_count();
+    rs.ranks = comm.size();
+    rs.particle_steps_per_second = static_cast<double>(particle_steps) / std::max(seconds, 1e-9);
+    rs.outputs = outputs;
+    rs.checkpoints = checkpoints;
+    rs.output_dir = dir;
+    return rs;
+}
+
+// What the run will do, or where it continues from, before its first step.
+void log_start(const RunOptions &opt, const Simulation &sim, const Comm &comm,
+               std::size_t particles, const RunPlan &plan, double end, std::ostream &log) {
+    if (!opt.progress) return;
+    const std::string spread =
+        comm.distributed()
+            ? fmt::format(" on {} ranks of {} thread(s)", comm.size(), Simulation::max_threads())
+            : std::string();
+    if (opt.restart)
+        log << fmt::format("talus: continuing from step {} (t = {:.6g} s, stage '{}'), {} "
+                           "particles{}\n",
+                           sim.steps(), sim.time(), sim.stages()[sim.stage()].name, particles,
+                           spread);
+    else
+        log << fmt::format("talus: {} particles{}; about {:.3g} steps of {:.3g} s to t = {:g} s "
+                           "(estimated from the initial state)\n",
+                           particles, spread, plan.steps, plan.first_dt, end);
+}
+
+// The end of a stage of a scenario in stages, and why it ended.
+void log_stage_end(const RunOptions &opt, const StageSpec &stage, const Simulation &sim, bool met,
+                   std::ostream &log) {
+    if (opt.progress && opt.progress_tty) std::fprintf(stderr, "\n");
+    log << fmt::format(
+        "talus: stage '{}' ended at t = {:.6g} s (step {}): {}\n", stage.name, sim.time(),
+        sim.steps(),
+        met ? fmt::format("at rest (kinetic energy ratio {:.3g})", sim.last_kinetic_energy_ratio())
+            : "its duration");
+}
+
 } // namespace
 
 RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) {
@@ -939,52 +1131,7 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     const bool root = comm.rank() == 0;
     const fs::path dir = opt.output_dir.empty() ? default_output_dir(sc.file) : opt.output_dir;
     std::vector<long> final_offsets;
-    together(comm, [&] {
-        // A misspelt field is refused before any work, not after the run.
-        if (!opt.final_field.empty() && !is_builtin_field(opt.final_field))
-            final_offsets = final_field_offsets(sc, opt.final_field);
-        else
-            final_offsets.assign(sc.materials.size(), -1);
-        // Refuse before any work: a previous run's files are never
-        // overwritten silently.
-        std::error_code ec;
-        if (opt.restart) {
-            const std::vector<std::string> diff =
-                identity_differences(*opt.restart, plugin_identities(sc));
-            if (!diff.empty()) {
-                std::string all;
-                for (const std::string &d : diff)
-                    all += "\n  " + d;
-                if (!opt.force_restart)
-                    throw Error(fmt::format(
-                        "the checkpoint was written by other binaries than this run would use:{}\n"
-                        "the run was not continued: a result made by two builds is not one "
-                        "result; pass --force-restart to continue anyway",
-                        all));
-                log << fmt::format("talus: warning: continuing with other binaries than the "
-                                   "checkpoint's (--force-restart):{}\n",
-                                   all);
-            }
-            if (!fs::is_directory(dir))
-                throw Error(fmt::format(
-                    "{}: no such folder: the checkpoint's run output is not there", dir.string()));
-        } else if (fs::exists(dir, ec)) {
-            if (!fs::is_directory(dir, ec))
-                throw Error(fmt::format("{}: exists and is not a directory", dir.string()));
-            std::vector<fs::path> previous;
-            for (const auto &e : fs::directory_iterator(dir, ec))
-                if (is_own_file(e.path())) previous.push_back(e.path());
-            if (ec)
-                throw Error(
-                    fmt::format("{}: cannot list the folder: {}", dir.string(), ec.message()));
-            std::sort(previous.begin(), previous.end());
-            if (!previous.empty() && !opt.force)
-                throw Error(fmt::format(
-                    "{}: holds the output of a previous run ({} and {} more file(s)); "
-                    "pass --force to overwrite it, or choose another --output-dir",
-                    dir.string(), previous.front().filename().string(), previous.size() - 1));
-        }
-    });
+    together(comm, [&] { final_offsets = refuse_before_work(sc, opt, dir, log); });
     Prepared prep;
     if (opt.restart) {
         prep.sim = std::make_unique<Simulation>(sc, opt.solver, opt.restart->state);
@@ -1007,21 +1154,7 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
 
     // Now the old files go: a run refused above leaves them as they were.
     together(comm, [&] {
-        if (!root) return;
-        std::error_code ec;
-        if (!opt.restart && fs::exists(dir / "checkpoints", ec))
-            for (const auto &e : fs::directory_iterator(dir / "checkpoints", ec))
-                if (e.path().extension() == ".h5" && !fs::remove(e.path(), ec) && ec)
-                    throw Error(fmt::format("{}: cannot remove the previous run's checkpoint: {}",
-                                            e.path().string(), ec.message()));
-        if (!opt.restart && fs::exists(dir, ec)) {
-            std::vector<fs::path> old;
-            for (const auto &e : fs::directory_iterator(dir, ec))
-                if (is_own_file(e.path())) old.push_back(e.path());
-            for (const fs::path &p : old)
-                remove_own(p, "the previous run's file");
-        }
-        make_folder(dir);
+        if (root) clear_previous_output(dir, opt);
     });
 
     RunOutput out(dir, sc, sim, prep.probe_particles, opt.restart ? &opt.restart->output : nullptr);
@@ -1051,19 +1184,7 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     if (!opt.restart) out.write();
     const double end = sc.end_time;
     const std::size_t particles = sim.particle_count(); // collective: on every rank
-    const std::string spread =
-        comm.distributed()
-            ? fmt::format(" on {} ranks of {} thread(s)", comm.size(), Simulation::max_threads())
-            : std::string();
-    if (opt.progress && opt.restart)
-        log << fmt::format("talus: continuing from step {} (t = {:.6g} s, stage '{}'), {} "
-                           "particles{}\n",
-                           sim.steps(), sim.time(), sim.stages()[sim.stage()].name, particles,
-                           spread);
-    else if (opt.progress)
-        log << fmt::format("talus: {} particles{}; about {:.3g} steps of {:.3g} s to t = {:g} s "
-                           "(estimated from the initial state)\n",
-                           particles, spread, prep.plan.steps, prep.plan.first_dt, end);
+    log_start(opt, sim, comm, particles, prep.plan, end, log);
     // The rate is of this process's steps.
     const long particle_steps_before = particle_steps;
     const double time_before = sim.time();
@@ -1094,29 +1215,6 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
         }
         return now;
     };
-    auto stop_if_signalled = [&] {
-        int sig = g_stop_signal;
-        // A launcher signals every rank, not at the same step: all stop at
-        // the first step's end where any has been.
-        if (comm.distributed()) sig = static_cast<int>(comm.max(static_cast<double>(sig)));
-        if (!sig) return;
-        const char *name = sig == SIGTERM ? "SIGTERM" : sig == SIGINT ? "SIGINT" : "a signal";
-        if (!checkpoints.possible()) // the same on every rank
-            throw Interrupted(fmt::format("talus: stopped by {} at step {} (t = {:.6g} s); no "
-                                          "checkpoint could be written: {}",
-                                          name, sim.steps(), sim.time(),
-                                          "the scenario's text could not be read"),
-                              sig);
-        const fs::path file = checkpoints.write(sim, out, next_k, particle_steps);
-        throw Interrupted(
-            fmt::format(
-                "talus: stopped by {} at step {} (t = {:.6g} s); the run "
-                "continues with: {}talus run --restart {}{}",
-                name, sim.steps(), sim.time(),
-                comm.distributed() ? fmt::format("mpirun -np {} ", comm.size()) : std::string(),
-                file.string(), comm.distributed() ? " (or on any other number of ranks)" : ""),
-            sig);
-    };
     for (;;) {
         const StageSpec &stage = sim.stages()[sim.stage()];
         StageEnd why = StageEnd::running;
@@ -1137,7 +1235,7 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
                 // passed several of them.
                 next_k = next_multiple(sim.time() + 1e-9 * sim.last_dt(), every, next_k);
             }
-            stop_if_signalled();
+            stop_if_signalled(comm, checkpoints, sim, out, next_k, particle_steps);
             if (checkpoint_due()) {
                 checkpoints.write(sim, out, next_k, particle_steps);
                 last_ck_wall = elapsed();
@@ -1149,48 +1247,15 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
                                     std::max(last_progress, 1e-9);
                 const double eta =
                     last_progress * (end - sim.time()) / std::max(sim.time() - time_before, 1e-300);
-                std::fprintf(stderr,
-                             "%sstep %ld  t = %.4g / %.4g s  dt = %.3g s  elapsed %s  ETA %s  "
-                             "%.3g particle-steps/s%s",
-                             opt.progress_tty ? "\r" : "talus: progress: ", sim.steps(), sim.time(),
-                             end, sim.last_dt(), fmt_time(last_progress).c_str(),
-                             fmt_time(eta).c_str(), rate, opt.progress_tty ? "   " : "\n");
-                std::fflush(stderr);
+                print_progress(opt, sim, end, last_progress, rate, eta);
             }
         }
         // The end of every stage is in the output.
         if (!out.written_now()) write_or_stop(out, sim);
         const bool met = why == StageEnd::quiescent;
         out.stage_row(why, met);
-        if (!sc.stages.empty()) {
-            if (opt.progress && opt.progress_tty) std::fprintf(stderr, "\n");
-            log << fmt::format("talus: stage '{}' ended at t = {:.6g} s (step {}): {}\n",
-                               stage.name, sim.time(), sim.steps(),
-                               met ? fmt::format("at rest (kinetic energy ratio {:.3g})",
-                                                 sim.last_kinetic_energy_ratio())
-                                   : "its duration");
-        }
-        if (stage.until && !met) {
-            const std::string what = fmt::format(
-                "stage '{}' did not come to rest within its duration of {:g} s: the kinetic "
-                "energy ratio is {:.3g} at t = {:.6g} s, the limit {:.3g}{}; the state at the "
-                "stage's end is in {}",
-                stage.name, stage.duration, sim.last_kinetic_energy_ratio(), sim.time(),
-                stage.until->kinetic_energy_ratio,
-                sim.quiet_since()
-                    ? fmt::format(" (below it since t = {:.6g} s, not yet for the hold time)",
-                                  *sim.quiet_since())
-                    : std::string(),
-                out.last_written());
-            if (stage.until->stop_if_not_met)
-                fail_together(comm,
-                              stage.until->origin.error(
-                                  what +
-                                  "; lengthen the duration or damp more, or set until.otherwise: "
-                                  "continue to go on regardless"));
-            log << stage.until->origin.warning(what + "; going on (until.otherwise: continue)")
-                << '\n';
-        }
+        if (!sc.stages.empty()) log_stage_end(opt, stage, sim, met, log);
+        if (stage.until && !met) not_at_rest(stage, sim, out, comm, log);
         if (sim.stage() + 1 == sim.stages().size()) break;
         try {
             sim.begin_next_stage();
@@ -1204,33 +1269,11 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
                            sim.stages()[sim.stage()].name, sim.time());
     }
     if (opt.progress && opt.progress_tty) std::fprintf(stderr, "\n");
-    // A run whose thread count the governor changed says so: its speed
-    // depends on it. (Its probes alone, a few steps each on fewer threads,
-    // are not worth a line.)
-    if (const Simulation::ThreadUse use = sim.thread_use(); opt.progress && use.changes > 0) {
-        std::string counts;
-        for (std::size_t k = 1; k < use.steps_at.size(); ++k)
-            if (use.steps_at[k] > 0)
-                counts += fmt::format("{}{} step(s) on {} thread(s)", counts.empty() ? "" : ", ",
-                                      use.steps_at[k], k);
-        log << fmt::format("talus: threads chosen by the steps' measured times beside the "
-                           "machine's other load: {} ({} change(s); --threads N fixes them)\n",
-                           counts, use.changes);
-    }
+    if (opt.progress) report_thread_use(sim, log);
     if (!opt.final_field.empty())
         write_final_particles(dir / "final_particles.csv", sim, opt.final_field, final_offsets);
-    RunSummary rs;
-    rs.steps = sim.steps();
-    rs.time = sim.time();
-    rs.seconds = elapsed();
-    rs.particles = sim.particle_count();
-    rs.ranks = comm.size();
-    rs.particle_steps_per_second =
-        static_cast<double>(particle_steps - particle_steps_before) / std::max(rs.seconds, 1e-9);
-    rs.outputs = out.outputs();
-    rs.checkpoints = checkpoints.written();
-    rs.output_dir = dir;
-    return rs;
+    return summary(sim, comm, elapsed(), particle_steps - particle_steps_before, out.outputs(),
+                   checkpoints.written(), dir);
 }
 
 } // namespace talus
