@@ -2,6 +2,8 @@
 // their options, the context a command runs in, and the recognition of a
 // YAML file handed to the wrong command. Each command is a file of
 // commands/ (commands.hpp lists them); main.cpp parses and dispatches.
+// They are compiled as one translation unit (core/CMakeLists.txt), so the
+// names in their anonymous namespaces must not repeat.
 #pragma once
 
 #include <talus/material/plugin_loader.hpp>
