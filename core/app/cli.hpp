@@ -2,8 +2,9 @@
 // their options, the context a command runs in, and the recognition of a
 // YAML file handed to the wrong command. Each command is a file of
 // commands/ (commands.hpp lists them); main.cpp parses and dispatches.
-// They are compiled as one translation unit (core/CMakeLists.txt), so the
-// names in their anonymous namespaces must not repeat.
+// They are compiled as one translation unit (UNITY_BUILD on the talus
+// target, core/CMakeLists.txt), so the names in their anonymous namespaces
+// must not repeat.
 #pragma once
 
 #include <talus/material/plugin_loader.hpp>

@@ -8,7 +8,10 @@
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 limit=${1:-150}
-command -v ctags > /dev/null || { echo "long_functions: needs universal-ctags" >&2; exit 2; }
+ctags --version 2> /dev/null | grep -q "Universal Ctags" ||
+  { echo "long_functions: needs Universal Ctags (Debian: universal-ctags)" >&2; exit 2; }
+list=$(mktemp)
+trap 'rm -f "$list"' EXIT
 ctags -R --languages=C,C++ --kinds-C++=f --kinds-C=f --fields=+ne -o - core sdk plugins tools |
   awk -F'\t' -v limit="$limit" '{
     line = ""; end = ""
@@ -17,11 +20,8 @@ ctags -R --languages=C,C++ --kinds-C++=f --kinds-C=f --fields=+ne -o - core sdk 
       if ($i ~ /^end:/) end = substr($i, 5)
     }
     if (end != "" && end - line + 1 > limit) print end - line + 1, $2 ":" line, $1
-  }' | sort -rn > /tmp/long_functions.$$
-status=0
-if [ -s /tmp/long_functions.$$ ]; then
-  cat /tmp/long_functions.$$
-  status=1
+  }' | sort -rn > "$list"
+if [ -s "$list" ]; then
+  cat "$list"
+  exit 1
 fi
-rm -f /tmp/long_functions.$$
-exit $status
