@@ -13,10 +13,11 @@
 // keeps a point's result independent of its neighbours in the batch, which
 // decide which form it meets (tests/unit/plugins/test_mohr_coulomb.cpp).
 //
-// The scalar screen with its early returns took a mispredicted branch on
-// most plastic points of a mixed block (a quarter of the 3D benchmark's
-// points yield, scattered through it); the four-lane form has no branch per
-// point and shares each operation among four points.
+// The scalar screen with its early returns takes a mispredicted branch on
+// most plastic points of a mixed block, whose yielding points are scattered
+// through it (bench/results/2026-11-27-mohr-coulomb-screen-epyc-zen4.md);
+// the four-lane form has no branch per point and shares each operation
+// among four points.
 #pragma once
 
 #include "principal_return.hpp"
@@ -178,8 +179,8 @@ screen_quads(const ScreenElastic &el, const Strength &st, double bound, double i
                 t[i] = (Lanes)_mm256_blendv_pd((__m256d)s0[i], (__m256d)t[i], (__m256d)in);
         store6(stress_end + 6 * k, t);
         // yield_mode 0 (+0.0: no bit set) where finished, by a mask on its
-        // bits: a branch per point, which GCC made of a conditional
-        // assignment, was mispredicted for most plastic points.
+        // bits: a branch per point, which GCC makes of a conditional
+        // assignment, is mispredicted for most plastic points.
         static_assert(kElastic == 0);
         for (std::size_t j = 0; j < 4; ++j) {
             const std::uint64_t finished = (static_cast<unsigned>(bits) >> j) & 1u;

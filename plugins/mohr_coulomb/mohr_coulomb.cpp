@@ -231,10 +231,10 @@ struct MohrCoulomb {
 
     // The points of a chunk whose trial stress is clearly inside the
     // surface (clearly_elastic), finished in one loop without the SDK's
-    // per-point set-up: most points of a batch (74 % of the 3D benchmark
-    // block's point-steps). The others, without softening or a tangent
-    // asked for, are finished by the plane pass here too; else they go to
-    // update_group() and update().
+    // per-point set-up: most points of a batch
+    // (bench/results/2026-11-25-mohr-coulomb-quick-pass-pairs-epyc-zen4.md).
+    // The others, without softening or a tangent asked for, are finished by
+    // the plane pass here too; else they go to update_group() and update().
     void quick_update(const talus::sdk::Points &p) const {
         std::size_t k = 0;
 #if defined(TALUS_MC_HAS_QUAD_SCREEN)
@@ -322,7 +322,8 @@ struct MohrCoulomb {
     // The plane pass: the points the screen left, decomposed eight at a
     // time, finished here without the SDK's per-point set-up. Those whose
     // trial stress is admissible or returns onto the shear or the cut-off
-    // plane (in the 3D benchmark block, four in five of them) four a
+    // plane (most of them,
+    // bench/results/2026-11-28-mohr-coulomb-plane-pass-ice-lake.md) four a
     // vector (plane_lanes.hpp), the others by finish() with the same
     // decomposition. The vector form runs finish()'s operations through
     // the same functions, so a point gets the same bits on either path.

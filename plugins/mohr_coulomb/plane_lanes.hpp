@@ -12,9 +12,9 @@
 // into a multiply-add (the plugin is compiled with -ffp-contract=off): a
 // point's bits do not depend on the form that took it (tested in
 // tests/unit/plugins/test_mohr_coulomb.cpp). A plastic point's
-// decompositions and returns were most of this model's cost in the 3D
-// benchmark block, a fifth of whose points leave the screen; each lane
-// shares its operations with three others and takes no branch.
+// decompositions and returns are most of this model's cost where points
+// leave the screen (bench/results/2026-11-28-mohr-coulomb-plane-pass-ice-lake.md);
+// each lane shares its operations with three others and takes no branch.
 #pragma once
 
 #include "principal_return.hpp"
@@ -131,7 +131,7 @@ namespace quad {
 
 // Four lanes a vector: AVX2, whose 256-bit vectors the templates above,
 // compiled for the baseline target and inlined, keep as vectors (GCC
-// lowered their 512-bit form to scalar code before inlining).
+// lowers their 512-bit form to scalar code before inlining).
 using Lanes = double __attribute__((vector_size(32)));
 using Mask = decltype(Lanes{} < Lanes{});
 

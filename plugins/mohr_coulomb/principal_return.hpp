@@ -143,7 +143,7 @@ struct Planes {
 // by value through code compiled for the baseline target.
 
 // m's complement in place: a bool's !, every bit of a lane mask flipped
-// (GCC lowered ! on a vector lane by lane, in scalar code).
+// (GCC lowers ! on a vector lane by lane, in scalar code).
 template <class M>
 TALUS_MC_LANE_INLINE void flip(M &m) {
     m = m ^ (m == m);

@@ -15,8 +15,8 @@ namespace talus::crash {
 // What the caller of a plugin is doing. Pointers must outlive the call.
 // The batch's group and particle ids are read only if a report is written:
 // a call costs a few stores, and no load from particle columns that the
-// step does not otherwise touch (a cache miss per batch was 2 % of a 2D
-// step).
+// step does not otherwise touch, which would be a cache miss per batch
+// (bench/results/2026-11-24-stencil-packs-avx2-kernels-epyc-zen4.md).
 struct Task {
     const char *material = nullptr; // scenario material name
     long step = 0;                  // the step being computed (0: initial state)

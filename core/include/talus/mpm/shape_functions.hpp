@@ -109,9 +109,9 @@ inline double second_moment(const double *w, const double *g, double xi) {
 // (u - t_j) / (t_j+k - t_j), the same divisions by knot spans), so they
 // are the clamped functions to the round-off of those divisions; the face
 // at u = n is their mirror image (node k <-> n - k, u <-> n - u). Horner's
-// rule then costs a few multiply-adds where the recursion took dozens of
-// divisions and branches per node, 4 % of a 3D step in a block with 6 %
-// of its particles next to a face.
+// rule then costs a few multiply-adds where the recursion takes dozens of
+// divisions and branches per node
+// (bench/results/2026-11-27-epyc-zen4-target-machine.md).
 template <int P>
 struct ClampedPieces {
     static constexpr int W = P + 1;

@@ -53,10 +53,10 @@ template <bool AnyAxis, class T, class Lm>
         for (int j = 0; j < 3; ++j)
             QS[i][j] = Q[i][0] * S[0][j] + Q[i][1] * S[1][j] + Q[i][2] * S[2][j];
     // a1 = a2 = 0 as the one compare |a1| + |a2| == 0 (false for NaN, as
-    // each compare), and the two selects apart: on vectors, GCC 12 builds
-    // an AND of two compare masks, or a select nested in another sharing
-    // their conditions, lane by lane from scalar compares where the target
-    // has no 64-bit mask vectors (AVX-512 without DQ).
+    // each compare), and the two selects apart: on vectors, the compiler
+    // builds an AND of two compare masks, or a select nested in another
+    // sharing their conditions, lane by lane from scalar compares where the
+    // target has no 64-bit mask vectors (AVX-512 without DQ).
     const T abs_a = (a1 < 0.0 ? -a1 : a1) + (a2 < 0.0 ? -a2 : a2);
     const auto about_z = abs_a == 0.0;
     // Voigt order: (0 0), (1 1), (2 2), (0 1), (1 2), (0 2).
@@ -69,10 +69,10 @@ template <bool AnyAxis, class T, class Lm>
         // selection when |a|^2 underflows to 0 with a1 or a2 nonzero, below
         // about 1e-154: the general rotation, exact to round-off, is then
         // applied where the stress was kept.) The other nesting
-        // (general or plane, then still or not) GCC 12 built in the
-        // vector kernels as a branch per lane that computed `general` in
-        // scalar code where the lane needed it: 10-15 ns a 3D point, a
-        // third of the material block (docs/performance.md).
+        // (general or plane, then still or not) the compiler builds in the
+        // vector kernels as a branch per lane that computes `general` in
+        // scalar code where the lane needs it
+        // (bench/results/2026-11-28-stress-rotation-whole-records-ice-lake.md).
         const T kept = still ? sig[m] : r[m];
         sig[m] = about_z ? kept : general;
     }

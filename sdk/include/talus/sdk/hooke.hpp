@@ -5,9 +5,9 @@
 // Voigt conventions of material_abi.h (tensor shear stress, engineering
 // shear strain, so the shear terms are G de). The arrays hold 6 values a
 // point, one point after another; written point by point the loop does not
-// vectorise (GCC 12 finds no vector type for groups of 6): 8-9 % of a 2D
-// linear elastic step's samples on an Intel Xeon, 6 % in the pairs below
-// with the wave speeds (docs/performance.md).
+// vectorise (the compiler finds no vector type for groups of 6), and it runs
+// for every point of a linear elastic step
+// (bench/results/2026-11-28-xeon-ice-lake-hooke-step-end-grid-update.md).
 //
 // Two points are 12 doubles, three 4-lane vectors whose lanes are always the
 // same components (xx yy zz xy | yz xz xx yy | zz xy yz xz), so each lane

@@ -265,7 +265,7 @@ inline Lanes lane_copysign(Lanes magnitude, Lanes sign) {
     return (Lanes)(((LanesMask)magnitude & ~bit) | ((LanesMask)sign & bit));
 }
 // All lanes (the masked form: the plain one starts from an undefined
-// vector, which GCC 12 reports as used uninitialised).
+// vector, which GCC reports as used uninitialised).
 inline Lanes lane_sqrt(Lanes x) { return (Lanes)_mm512_mask_sqrt_pd((__m512d)x, 0xff, (__m512d)x); }
 
 #include "talus/sdk/detail/spectral_kernel.inc"
@@ -274,8 +274,9 @@ inline Lanes lane_sqrt(Lanes x) { return (Lanes)_mm512_mask_sqrt_pd((__m512d)x, 
 // rule order_lane follows (is_above), as selects per place, and the
 // same q + scale l. For general matrices only (not is_plane), so none is a
 // multiple of the identity (whose entries (0, 2) and (1, 2) are zero).
-// Ordering each lane apart, through a SymmetricEigen, was a third of what
-// a group cost beyond the lanes' arithmetic.
+// Ordering each lane apart, through a SymmetricEigen, costs much of what a
+// group takes beyond the lanes' arithmetic
+// (bench/results/2026-11-28-mohr-coulomb-ordered-decompositions-ice-lake.md).
 inline void ordered_octet(const OctetIn &in, EigenLanes &out) {
     Lanes e[6];
     for (int c = 0; c < 6; ++c)
@@ -380,8 +381,8 @@ inline void eigen_group(const Mat3 *const *a, SymmetricEigen *const *out, std::s
             general[ng++] = k;
     }
 #if defined(TALUS_SDK_HAS_OCTET)
-    // A vector of eight costs about what four matrices do in pairs (about
-    // 30 ns a lane against 60 a matrix, docs/performance.md).
+    // A vector of eight costs about what four matrices do in pairs
+    // (bench/results/2026-11-27-mohr-coulomb-plane-and-eight-lane-decompositions.md).
     if (ng >= 4 && octet_enabled()) {
         OctetIn in;
         // Idle lanes repeat the last matrix: lanes do not mix.

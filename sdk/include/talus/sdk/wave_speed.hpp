@@ -11,12 +11,11 @@
 // x86-64. Both are correctly rounded IEEE operations in every form, so each
 // point's bits are those of std::sqrt(M / rho).
 //
-// Four lanes rather than eight: on the processors measured a 512-bit
-// division or square root takes twice the time of a 256-bit one (AMD
-// Zen 4) or more (Intel), so eight lanes gain nothing over four, while a
-// 256-bit one takes the time of a 128-bit one on Zen 4: the quad form
-// halved the wave speeds' share of linear_elastic's update there, 1-2 %
-// of a 2D step (docs/performance.md).
+// Four lanes rather than eight: a 512-bit division or square root takes
+// twice the time of a 256-bit one (AMD Zen 4) or more (Intel), so eight
+// lanes gain nothing over four, while on Zen 4 a 256-bit one takes the time
+// of a 128-bit one: four lanes for the cost of two there
+// (bench/results/2026-11-27-epyc-zen4-target-machine.md).
 #pragma once
 
 #include <cmath>
