@@ -6,7 +6,10 @@
 // for small strains with large rotations. It is not hyperelastic: for large
 // strains use neo_hookean.
 //
-// This file is also the template for a new model: copy the folder, rename.
+// The model is its constructor, update() and wave_speed(), the whole of
+// what the SDK needs (a new model starts from `talus plugin new`, the same
+// shape). quick_update, at the end, is the SDK's opt-in speed path
+// (docs/plugins.md, "Speed paths"): the same arithmetic over a chunk.
 #include <talus/sdk/hooke.hpp>
 #include <talus/sdk/material.hpp>
 #include <talus/sdk/wave_speed.hpp>
@@ -75,8 +78,9 @@ struct LinearElastic {
     // the per-point forms the SDK's contract asks for, with the same
     // arithmetic (isotropic_hooke, sqrt(M / rho)). Without it the SDK set up each
     // point for update() and computed its wave speed alone, where the
-    // division and the square root wait on each other: 10 % of a 2D step
-    // on a core with slow ones (docs/performance.md).
+    // division and the square root wait on each other, which costs most on
+    // a core where they are slow
+    // (bench/results/2026-11-26-xeon-2.1ghz-plugin-path.md).
     void quick_update(const talus::sdk::Points &p) const {
         talus::sdk::isotropic_hooke(lambda_, shear_, p.stress_start, p.strain_increment,
                                     p.stress_end, p.n);

@@ -147,7 +147,7 @@ int Run::run(Context &ctx) {
     ro.progress_tty = rank0 && isatty(2) != 0;
     ro.progress_interval = progress_every_;
     ro.solver.threads = threads_;
-    ro.solver.adapt_threads = threads_ == 0;
+    ro.adapt_threads = threads_ == 0;
     if (!plot_.empty()) {
         check_plot_folder(sc);
         ro.final_field = plot_field_;

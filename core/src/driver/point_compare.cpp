@@ -3,7 +3,7 @@
 // ctest (a mismatch makes `talus point` exit non-zero).
 #include <talus/driver/point_driver.hpp>
 #include <talus/error.hpp>
-#include <talus/io/csv_table.hpp>
+#include <talus/input/csv_table.hpp>
 
 #include <fmt/format.h>
 

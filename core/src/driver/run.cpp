@@ -1,5 +1,7 @@
 #include <talus/driver/run.hpp>
 
+#include "governed_steps.hpp"
+
 #include <talus/driver/point_driver.hpp>
 #include <talus/input/yaml_input.hpp>
 #include <talus/io/checkpoint.hpp>
@@ -999,22 +1001,6 @@ void clear_previous_output(const fs::path &dir, const RunOptions &opt) {
     make_folder(dir);
 }
 
-// A run whose thread count the governor changed says so: its speed
-// depends on it. (Its probes alone, a few steps each on fewer threads, are
-// not worth a line.)
-void report_thread_use(const Simulation &sim, std::ostream &log) {
-    const Simulation::ThreadUse use = sim.thread_use();
-    if (use.changes == 0) return;
-    std::string counts;
-    for (std::size_t k = 1; k < use.steps_at.size(); ++k)
-        if (use.steps_at[k] > 0)
-            counts += fmt::format("{}{} step(s) on {} thread(s)", counts.empty() ? "" : ", ",
-                                  use.steps_at[k], k);
-    log << fmt::format("talus: threads chosen by the steps' measured times beside the "
-                       "machine's other load: {} ({} change(s); --threads N fixes them)\n",
-                       counts, use.changes);
-}
-
 // A stage with until: that did not come to rest: the run stops (agreed on
 // every rank) or, with until.otherwise: continue, warns and goes on.
 void not_at_rest(const StageSpec &stage, const Simulation &sim, const RunOutput &out,
@@ -1120,6 +1106,31 @@ void log_stage_end(const RunOptions &opt, const StageSpec &stage, const Simulati
             : "its duration");
 }
 
+// The Simulation from the scenario, or from the checkpoint a restart
+// continues; the plan's notes logged, and a run over the limits refused
+// unless allowed.
+Prepared prepare_or_restore(Scenario &sc, const RunOptions &opt, std::ostream &log) {
+    Prepared prep;
+    if (opt.restart) {
+        prep.sim = std::make_unique<Simulation>(sc, opt.solver, opt.restart->state);
+        prep.probe_particles = opt.restart->output.probe_particles;
+    } else {
+        prep = prepare_run(sc, opt.solver);
+    }
+    for (const std::string &n : prep.plan.notes)
+        log << n << '\n';
+    if (!prep.plan.over_limits.empty()) {
+        std::string all;
+        for (const std::string &w : prep.plan.over_limits)
+            all += (all.empty() ? "" : "\n") + w;
+        if (!opt.allow_large)
+            fail_together(opt.solver.comm,
+                          all + "\nthe run was not started; pass --allow-large to run it anyway");
+        log << all << '\n';
+    }
+    return prep;
+}
+
 } // namespace
 
 RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) {
@@ -1132,25 +1143,8 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     const fs::path dir = opt.output_dir.empty() ? default_output_dir(sc.file) : opt.output_dir;
     std::vector<long> final_offsets;
     together(comm, [&] { final_offsets = refuse_before_work(sc, opt, dir, log); });
-    Prepared prep;
-    if (opt.restart) {
-        prep.sim = std::make_unique<Simulation>(sc, opt.solver, opt.restart->state);
-        prep.probe_particles = opt.restart->output.probe_particles;
-    } else {
-        prep = prepare_run(sc, opt.solver);
-    }
+    Prepared prep = prepare_or_restore(sc, opt, log);
     Simulation &sim = *prep.sim;
-    for (const std::string &n : prep.plan.notes)
-        log << n << '\n';
-    if (!prep.plan.over_limits.empty()) {
-        std::string all;
-        for (const std::string &w : prep.plan.over_limits)
-            all += (all.empty() ? "" : "\n") + w;
-        if (!opt.allow_large)
-            fail_together(comm,
-                          all + "\nthe run was not started; pass --allow-large to run it anyway");
-        log << all << '\n';
-    }
 
     // Now the old files go: a run refused above leaves them as they were.
     together(comm, [&] {
@@ -1215,12 +1209,13 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
         }
         return now;
     };
+    GovernedSteps steps(opt.adapt_threads, comm);
     for (;;) {
         const StageSpec &stage = sim.stages()[sim.stage()];
         StageEnd why = StageEnd::running;
         while ((why = sim.stage_end_reached()) == StageEnd::running) {
             try {
-                sim.step(sim.stage_end() - sim.time());
+                steps.step(sim, sim.stage_end() - sim.time());
             } catch (const Error &e) {
                 failed(e, out, sim, dir);
             }
@@ -1269,7 +1264,7 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
                            sim.stages()[sim.stage()].name, sim.time());
     }
     if (opt.progress && opt.progress_tty) std::fprintf(stderr, "\n");
-    if (opt.progress) report_thread_use(sim, log);
+    if (opt.progress) steps.report(log);
     if (!opt.final_field.empty())
         write_final_particles(dir / "final_particles.csv", sim, opt.final_field, final_offsets);
     return summary(sim, comm, elapsed(), particle_steps - particle_steps_before, out.outputs(),

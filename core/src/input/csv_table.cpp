@@ -1,4 +1,4 @@
-#include <talus/io/csv_table.hpp>
+#include <talus/input/csv_table.hpp>
 
 #include <talus/error.hpp>
 

@@ -4,7 +4,7 @@
 // convention (compression positive: a positive axial_strain shortens the
 // sample, a positive pressure compresses it); the conditions themselves are
 // in the plugin's convention (tension positive).
-#include <talus/driver/point_driver.hpp>
+#include <talus/input/point_case.hpp>
 
 #include <talus/sdk/voigt.hpp>
 

@@ -3,7 +3,7 @@
 // is allocated (estimate_resources).
 #include "simulation_state.hpp"
 
-#include "particle_generation.hpp"
+#include "state/particle_generation.hpp"
 
 #include <talus/material/plugin_loader.hpp>
 

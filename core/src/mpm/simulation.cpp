@@ -2,14 +2,13 @@
 // the particle order, and runs the scheme (schemes.cpp).
 #include "simulation_state.hpp"
 
-#include "migration.hpp"
-#include "parallel.hpp"
-#include "particle_generation.hpp"
+#include "parallel/parallel.hpp"
+#include "ranks/migration.hpp"
+#include "state/particle_generation.hpp"
 
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <exception>
 #include <limits>
@@ -142,8 +141,6 @@ Simulation::Impl::Impl(const Scenario &scenario, SolverOptions options, const Sn
       variant(variant_of(sc.solver)), velocity_motion(velocity_motion_of(sc.solver)) {
     for (const GroupSpec &g : sc.groups)
         group_names.push_back(g.name);
-    if (opt.adapt_threads && !comm.distributed() && par::max_threads() > 1)
-        governor.emplace(par::max_threads());
     // A snapshot read on another number of ranks than wrote it (this
     // rank's share of its files) is spread over the ranks like generated
     // particles; one of this rank's part of a run on as many ranks takes
@@ -243,15 +240,10 @@ Simulation::Simulation(const Scenario &scenario, SolverOptions options, const Sn
     impl_ = std::make_unique<Impl>(scenario, options, &snapshot);
 }
 
-Simulation::~Simulation() {
-    // The governor may have left fewer threads than the run began with:
-    // the process's next parallel work gets them back.
-    if (impl_ && impl_->governor) par::set_threads(impl_->governor->max_threads());
-}
+Simulation::~Simulation() = default;
 
 void Simulation::step(double max_dt) {
     Impl &g = *impl_;
-    const auto started = std::chrono::steady_clock::now();
     double dt = std::min(g.time_step(), max_dt);
     if (!(dt > 0.0))
         fail_together(g.comm, fmt::format("step {}: time step {} is not positive", g.step + 1, dt));
@@ -276,12 +268,6 @@ void Simulation::step(double max_dt) {
     g.last_dt = dt;
     ++g.step;
     g.watch_quiescence();
-    if (g.governor) {
-        const int before = g.governor->threads();
-        g.governor->took(
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count());
-        if (g.governor->threads() != before) par::set_threads(g.governor->threads());
-    }
 }
 
 // dt = cfl h / max(c_p + |v_p|) (seed 000 eq. 45), from the last pass of the
@@ -369,10 +355,7 @@ std::size_t Simulation::active_nodes() const { return impl_->grid.active().nodes
 std::size_t Simulation::grid_nodes() const { return impl_->grid.n_nodes; }
 int Simulation::max_threads() { return par::max_threads(); }
 int Simulation::processors() { return par::processors(); }
-Simulation::ThreadUse Simulation::thread_use() const {
-    if (!impl_->governor) return {};
-    return {impl_->governor->steps_at(), impl_->governor->changes()};
-}
+void Simulation::set_threads(int threads) { set_thread_count(threads); }
 const char *Simulation::kernel_isa() const { return isa_name(impl_->isa); }
 long Simulation::parallel_regions() { return par::regions(); }
 

@@ -5,24 +5,23 @@
 // it reads and writes; the scheme functions (schemes.cpp) compose them.
 #pragma once
 
-#include "boundary.hpp"
-#include "decomposition.hpp"
-#include "g2p.hpp"
-#include "grid.hpp"
-#include "grid_update.hpp"
-#include "halo.hpp"
-#include "kinematics.hpp"
-#include "loads.hpp"
-#include "material_update.hpp"
-#include "move_particles.hpp"
-#include "ordering.hpp"
-#include "p2g.hpp"
-#include "thread_governor.hpp"
+#include "method/boundary.hpp"
+#include "method/g2p.hpp"
+#include "method/grid_update.hpp"
+#include "method/kinematics.hpp"
+#include "method/loads.hpp"
+#include "method/material_update.hpp"
+#include "method/move_particles.hpp"
+#include "method/p2g.hpp"
+#include "parallel/ordering.hpp"
+#include "profile/phase_timer.hpp"
+#include "ranks/decomposition.hpp"
+#include "ranks/halo.hpp"
+#include "state/grid.hpp"
 
 #include <talus/mpm/simulation.hpp>
 
 #include <array>
-#include <chrono>
 #include <exception>
 #include <limits>
 #include <memory>
@@ -104,8 +103,6 @@ struct Simulation::Impl {
     std::vector<std::string> warnings;
     std::optional<FailedCall> failed_call;
     std::array<double, Simulation::kPhases> phase_seconds{};
-    // With opt.adapt_threads on one rank: each step's thread count.
-    std::optional<ThreadGovernor> governor;
 
     // With `restore`, the state comes from it (no generation, no plugin
     // call).
@@ -204,14 +201,8 @@ struct Simulation::Impl {
                 isa};
     }
 
-    struct Timer {
-        double &total;
-        std::chrono::steady_clock::time_point t0 = std::chrono::steady_clock::now();
-        ~Timer() {
-            total += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        }
-    };
-    Timer timer(Phase p) { return Timer{phase_seconds[static_cast<std::size_t>(p)]}; }
+    double &seconds_of(Phase p) { return phase_seconds[static_cast<std::size_t>(p)]; }
+    PhaseTimer timer(Phase p) { return PhaseTimer(seconds_of(p)); }
 };
 
 } // namespace talus

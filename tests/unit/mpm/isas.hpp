@@ -2,7 +2,7 @@
 // runs, up to the one a run would pick (talus::kernel_isa).
 #pragma once
 
-#include "isa.hpp"
+#include "kernels/isa.hpp"
 
 #include <vector>
 

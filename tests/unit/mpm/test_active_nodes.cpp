@@ -7,10 +7,10 @@
 // give the same bits, in every scheme, shape and condition that writes to
 // the grid; each run must also have worked on far fewer nodes than the
 // grid holds, or the comparison would show nothing.
-#include "boundary.hpp"
-#include "grid.hpp"
-#include "grid_update.hpp"
+#include "method/boundary.hpp"
+#include "method/grid_update.hpp"
 #include "solver_helpers.hpp"
+#include "state/grid.hpp"
 
 #include <talus/mpm/shape_functions.hpp>
 

@@ -3,9 +3,9 @@
 // tile the domain, each holds its share of the weight, the owner of every
 // cell and node is the box holding it, and the shared-node lists of two
 // ranks name the same nodes in the same order.
-#include "decomposition.hpp"
-#include "grid.hpp"
-#include "halo.hpp"
+#include "ranks/decomposition.hpp"
+#include "ranks/halo.hpp"
+#include "state/grid.hpp"
 
 #include <talus/error.hpp>
 

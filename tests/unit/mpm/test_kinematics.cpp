@@ -1,4 +1,4 @@
-// The block kinematics (core/src/mpm/kinematics.cpp), which computes N
+// The block kinematics (core/src/mpm/method/kinematics.cpp), which computes N
 // points at once across the vector lanes:
 //
 // - against the definitions, point by point, computed here independently:
@@ -17,9 +17,9 @@
 //   bit. Runs on different machines depend on this;
 // - an inverted point: the points before it done, its J kept, nothing
 //   after it touched.
-#include "isa.hpp"
 #include "isas.hpp"
-#include "kinematics.hpp"
+#include "kernels/isa.hpp"
+#include "method/kinematics.hpp"
 
 #include <talus/sdk/voigt.hpp>
 

@@ -7,7 +7,7 @@
 // denormal): a transpose only moves values. The 8-lane networks are plain
 // vector code, so this runs on any x86-64 (on one without AVX-512 the
 // compiler splits the vectors), whatever the machine's kernels are.
-#include "lanes.hpp"
+#include "kernels/lanes.hpp"
 
 #include <gtest/gtest.h>
 

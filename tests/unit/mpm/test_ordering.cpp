@@ -1,12 +1,12 @@
-// The particle re-sort (core/src/mpm/ordering.hpp), which permutes every
+// The particle re-sort (core/src/mpm/parallel/ordering.hpp), which permutes every
 // column in place by following the permutation's cycles: afterwards the
 // particles are in cell order, particles of one cell keep their previous
 // relative order (a stable sort), and every value of every column, of any
 // width and type, is still its particle's. Each value is written as a
 // function of the particle's id and the value's place in its row, so that
 // a value left behind, moved twice or taken from a neighbour is seen.
-#include "ordering.hpp"
-#include "parallel.hpp"
+#include "parallel/ordering.hpp"
+#include "parallel/parallel.hpp"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-// The factorised transfer kernels (core/src/mpm/stencil.hpp) against the
+// The factorised transfer kernels (core/src/mpm/kernels/stencil.hpp) against the
 // textbook form they replace: every node's weight w_i = prod_d N(xi_d - k_d),
 // its gradient and its offset formed one by one from the per-axis shape
 // functions, then the scatter sum_i (w_i a + grad w_i . G + w_i off_i . O)
@@ -8,8 +8,8 @@
 // reordering's rounding with margin (a few hundred ulps). The size is 1 for
 // weights and values, 1/h for gradients (dN/dx ~ 1/h), h for offsets; a
 // scattered value mixes weight terms and gradient terms: 1 + 1/h.
+#include "kernels/stencil.hpp"
 #include "solver_helpers.hpp"
-#include "stencil.hpp"
 
 #include <gtest/gtest.h>
 

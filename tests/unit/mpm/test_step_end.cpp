@@ -1,4 +1,4 @@
-// The step's end pass by blocks (core/src/mpm/move_particles.hpp) against
+// The step's end pass by blocks (core/src/mpm/method/move_particles.hpp) against
 // its definition written as one plain loop over the particles: positions
 // put back onto closed faces (counted, with the deepest overshoot), the
 // particles outside the domain, max(c + |v|), each particle's cell and
@@ -8,10 +8,10 @@
 // them): every result must be the loop's exactly, integers and the maximum
 // alike, since none of them involves a sum in floating point. So must the
 // block's packs across the vector lanes of every instruction set.
-#include "isa.hpp"
 #include "isas.hpp"
-#include "move_particles.hpp"
-#include "ordering.hpp"
+#include "kernels/isa.hpp"
+#include "method/move_particles.hpp"
+#include "parallel/ordering.hpp"
 
 #include <talus/error.hpp>
 

@@ -2,7 +2,7 @@
 // a time and each slab in memory order, so every node sums its
 // contributions in the same order whatever the number of threads. Two
 // threads must reproduce one thread bit for bit.
-#include "parallel.hpp"
+#include "parallel/parallel.hpp"
 #include "solver_helpers.hpp"
 
 #include <gtest/gtest.h>
@@ -89,7 +89,7 @@ TEST(Threads, TheBatchSizeDoesNotChangeTheRun) {
     omp_set_num_threads(before);
 }
 
-// The thread governor (SolverOptions::adapt_threads) may change the count
+// The thread governor (RunOptions::adapt_threads) may change the count
 // between any two steps: a run whose count changes every step, through
 // the re-sort, must give the one-thread run's bits (per-thread scratch
 // sized at the start must serve any count up to it).
@@ -144,41 +144,6 @@ TEST(Threads, TheKineticEnergyRatioIsTheSameWithEveryCount) {
     for (const int threads : {2, 3}) {
         omp_set_num_threads(threads);
         EXPECT_EQ(s->sim->kinetic_energy_ratio(), one) << threads << " threads";
-    }
-    omp_set_num_threads(before);
-}
-
-// A governed run counts every step at the count it ran on and gives the
-// process its threads back at the end, whatever count it finished on.
-TEST(Threads, AGovernedRunAccountsForItsStepsAndGivesTheThreadsBack) {
-    const std::string yaml =
-        "talus: 1\ndimension: 2\ngrid: {origin: [0, 0], size: [1, 1], cell: 0.05}\n"
-        "materials:\n  m: {model: linear_elastic, density: 1000, youngs_modulus: 1.0e6, "
-        "poisson_ratio: 0.3}\n"
-        "groups:\n  a: {material: m, particles_per_cell: 2,\n"
-        "      shape: {box: {min: [0.2, 0.2], max: [0.8, 0.6]}}}\n"
-        "boundaries: {y-: {friction: 0}}\ngravity: [0, -9.81]\ntime: {end: 1}\n";
-    const int before = omp_get_max_threads();
-    omp_set_num_threads(2);
-    {
-        auto s = talus::test::sim_from_text(yaml);
-        talus::SolverOptions opt;
-        opt.adapt_threads = true;
-        s->sim = std::make_unique<talus::Simulation>(s->scenario, opt);
-        for (int k = 0; k < 300; ++k)
-            s->sim->step(1.0);
-        const auto use = s->sim->thread_use();
-        ASSERT_EQ(use.steps_at.size(), 3u); // counts 0, 1, 2
-        EXPECT_EQ(use.steps_at[0], 0);
-        EXPECT_EQ(use.steps_at[1] + use.steps_at[2], 300);
-        // Force the last count to one: the destructor must restore two.
-        omp_set_num_threads(1);
-    }
-    EXPECT_EQ(omp_get_max_threads(), 2);
-    {
-        auto s = talus::test::sim_from_text(yaml); // not governed: nothing to report
-        s->sim->step(1.0);
-        EXPECT_TRUE(s->sim->thread_use().steps_at.empty());
     }
     omp_set_num_threads(before);
 }

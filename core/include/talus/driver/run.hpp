@@ -27,6 +27,15 @@ struct RunOptions {
     bool progress_tty = false;
     double progress_interval = 10.0;
     SolverOptions solver;
+    // Choose each step's thread count, between 1 and solver.threads
+    // (OpenMP's default for 0), from the steps' measured wall times, so that
+    // a run next to another busy process is not held at every barrier by a
+    // thread that lost its core (ThreadGovernor). The results do not
+    // depend on the thread count, bit for bit. Off with several ranks (a
+    // rank's steps wait for the others'), and by default: a caller that
+    // sets the threads gets them. `talus run` turns it on unless --threads
+    // is given.
+    bool adapt_threads = false;
     // When set, the run ends by writing final_particles.csv in the output
     // folder: id, group, coordinates and this field of every particle (a
     // scalar state variable of the materials, or one of kFinalFieldBuiltins).

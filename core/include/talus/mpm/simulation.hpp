@@ -69,15 +69,6 @@ struct SolverOptions {
     // are the same bit for bit; the option is there to show it (tests) and
     // to measure what it saves (talus_bench).
     bool active_nodes_only = true;
-    // Choose each step's thread count, between 1 and `threads` (OpenMP's
-    // default for 0), from the steps' measured wall times, so that a run
-    // next to another busy process is not held at every barrier by a
-    // thread that lost its core (ThreadGovernor). The results do not
-    // depend on the thread count, bit for bit. Off with several ranks
-    // (a rank's steps wait for the others'), and by default: a caller
-    // that sets the threads gets them. `talus run` turns it on unless
-    // --threads is given.
-    bool adapt_threads = false;
     // The ranks the run is spread over (docs/mpi.md): each holds the
     // particles of its part of the grid. With more than one, step(),
     // diagnostics(), critical_dt(), kinetic_energy_ratio(),
@@ -216,14 +207,11 @@ class Simulation {
     static int max_threads();
     // Processors this process may run on (its affinity mask).
     static int processors();
-    // With SolverOptions::adapt_threads: the steps taken at each thread
-    // count (index = count) and how often the count changed; steps_at is
-    // empty without.
-    struct ThreadUse {
-        std::vector<long> steps_at;
-        long changes = 0;
-    };
-    ThreadUse thread_use() const;
+    // The threads of the solver's parallel loops from the next step on
+    // (1 to kMaxThreads; 0: OpenMP's default): the results do not depend on
+    // the count, bit for bit (docs/theory.md, "Parallel execution"), so it
+    // may change between any two steps. Process-wide, like OpenMP's.
+    static void set_threads(int threads);
     // The instruction set of the transfer kernels this run uses (generic,
     // avx2, avx512): the widest the CPU has, or TALUS_KERNEL_ISA.
     const char *kernel_isa() const;

@@ -1,6 +1,6 @@
-#include "g2p.hpp"
+#include "method/g2p.hpp"
 
-#include "g2p_kernels.hpp"
+#include "kernels/g2p_kernels.hpp"
 
 namespace talus {
 

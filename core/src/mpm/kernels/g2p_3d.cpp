@@ -1,4 +1,4 @@
 // The 3D instances of the G2P kernels (g2p_kernels.hpp).
-#include "g2p_kernels.hpp"
+#include "kernels/g2p_kernels.hpp"
 
 template struct talus::g2p_kernels::Passes<3>;

@@ -4,11 +4,11 @@
 // to g2p*.cpp.
 #pragma once
 
-#include "g2p.hpp"
-#include "isa.hpp"
-#include "parallel.hpp"
-#include "stencil.hpp"
-#include "transfer.hpp"
+#include "kernels/isa.hpp"
+#include "kernels/stencil.hpp"
+#include "method/g2p.hpp"
+#include "method/transfer.hpp"
+#include "parallel/parallel.hpp"
 
 #include <algorithm>
 #include <type_traits>
@@ -84,33 +84,53 @@ struct G2pMotionKernel {
     };
     template <class Lanes, Isa I>
     [[gnu::always_inline]] static void run(const Args &args) {
-        constexpr bool Gradient = StoreGradient || Kinematics || T::gradient;
-        const G2pTargets &t = *args.t;
-        const GridGeometry &g = t.geo;
-        const double *vel = args.vel;
-        const double dt = args.dt, alpha = t.alpha;
-        const bool second = args.motion == Motion::mean_velocity;
-        const bool move = args.motion != Motion::none;
-        const bool bspline = g.affine_dinv > 0.0;
-        const Loads &loads = t.loads;
-        const std::size_t si = args.set;
-        ParticleSet &s = t.sets[si];
+        Chunk<Lanes, I> chunk(args);
+        chunk.run();
+    }
+
+  private:
+    static constexpr bool Gradient = StoreGradient || Kinematics || T::gradient;
+
+    // One chunk of particles: the gather of each particle's sums over its
+    // nodes, the particle's update from them (gathered), and with the
+    // kinematics fused in the hand-off of each finished block.
+    template <class Lanes, Isa I>
+    class Chunk {
+      public:
+        [[gnu::always_inline]] explicit Chunk(const Args &args)
+            : args_(args), g_(args.t->geo), vel_(args.vel), dt_(args.dt), alpha_(args.t->alpha),
+              second_(args.motion == Motion::mean_velocity), move_(args.motion != Motion::none),
+              bspline_(g_.affine_dinv > 0.0), loads_(args.t->loads), s_(args.t->sets[args.set]),
+              L_block_(Kinematics ? args.blocks->buffer() : nullptr),
+              L_column_(Kinematics ? args.blocks->block_size() : 0), block_begin_(args.begin) {}
+
+        [[gnu::always_inline]] void run() {
+            if constexpr (Kinematics) {
+                const std::size_t B = args_.blocks->block_size();
+                for (; block_begin_ < args_.end; block_begin_ += B) {
+                    const std::size_t block_end = std::min(args_.end, block_begin_ + B);
+                    points(block_begin_, block_end);
+                    args_.blocks->take(args_.set, block_begin_, block_end - block_begin_);
+                }
+            } else {
+                points(args_.begin, args_.end);
+            }
+        }
+
+      private:
         using St = Stencil<D, S>;
         // The gradient and offset sums read v~ alone, a record's first
         // half; in 2D v is in that half too (node::kEndVelocity).
         using H = typename HalfRecord<Lanes>::type;
         using R = std::conditional_t<D == 2, H, Lanes>;
-        const std::size_t ve = node::kEndVelocity, vs = node::velocity(D);
-        // With the update fused in: the block's gradients, by columns
-        // (MaterialUpdate::gradient_buffer).
-        double *L_block = Kinematics ? args.blocks->buffer() : nullptr;
-        const std::size_t L_column = Kinematics ? args.blocks->block_size() : 0;
-        std::size_t block_begin = args.begin;
+        static constexpr std::size_t ve = node::kEndVelocity, vs = node::velocity(D);
+
         // One particle (st: a Stencil or a lane of a StencilPack) from its
         // sums over the nodes of the records (v, v~): by the weight, the
         // gradient and the weighted offset.
-        auto gathered = [&](const auto &st, std::size_t p, const R &sum, const H(&dsum)[D],
-                            const H(&osum)[D]) __attribute__((always_inline)) {
+        template <class Point>
+        [[gnu::always_inline]] void gathered(const Point &st, std::size_t p, const R &sum,
+                                             const H (&dsum)[D], const H (&osum)[D]) {
             double vpic[D], vold[D], L[D][D], B[D][D], step[D];
             for (int d = 0; d < D; ++d) {
                 vpic[d] = sum[ve + static_cast<std::size_t>(d)];
@@ -123,161 +143,194 @@ struct G2pMotionKernel {
             double vnew[D];
             for (int d = 0; d < D; ++d) {
                 const std::size_t dd = static_cast<std::size_t>(d);
-                vnew[d] = vpic[d] + alpha * (s.v[dd][p] - vold[d]);
-                step[d] = second ? 0.5 * dt * (vpic[d] + vold[d]) : dt * vpic[d];
+                blended_velocity(vpic[d], vold[d], s_.v[dd][p], alpha_, vnew[d]);
+                position_step(vpic[d], vold[d], dt_, second_, step[d]);
             }
             if constexpr (Kinematics) {
-                double *Lp = L_block + (p - block_begin);
+                double *Lp = L_block_ + (p - block_begin_);
                 for (int r = 0; r < D; ++r)
                     for (int c = 0; c < D; ++c)
-                        Lp[static_cast<std::size_t>(3 * r + c) * L_column] = L[r][c];
+                        Lp[static_cast<std::size_t>(3 * r + c) * L_column_] = L[r][c];
             } else if constexpr (StoreGradient) {
                 for (int r = 0; r < D; ++r)
                     for (int c = 0; c < D; ++c)
-                        s.L[9 * p + static_cast<std::size_t>(3 * r + c)] = L[r][c];
+                        s_.L[9 * p + static_cast<std::size_t>(3 * r + c)] = L[r][c];
             }
             if constexpr (T::affine)
-                T::template affine_matrix<D>(B, L, st.inverse_moments(), bspline, &s.C[9 * p]);
+                T::template affine_matrix<D>(B, L, st.inverse_moments(), bspline_, &s_.C[9 * p]);
             // Particle velocity fixities override the grid's answer.
-            if (const std::uint32_t mask = s.fix_mask[p]) {
-                loads.fix_velocity<D>(mask, vnew);
-                loads.fixity_step<D>(mask, dt, step);
+            if (const std::uint32_t mask = s_.fix_mask[p]) {
+                loads_.fix_velocity<D>(mask, vnew);
+                loads_.fixity_step<D>(mask, dt_, step);
             }
             for (int d = 0; d < D; ++d) {
                 const std::size_t dd = static_cast<std::size_t>(d);
-                s.v[dd][p] = vnew[d];
+                s_.v[dd][p] = vnew[d];
                 // With the kinematics fused in nothing later in the step
                 // needs the start position: move the particle now.
                 if constexpr (Kinematics)
-                    s.x[dd][p] += step[d];
-                else if (move)
-                    s.dx[dd][p] = step[d];
+                    s_.x[dd][p] += step[d];
+                else if (move_)
+                    s_.dx[dd][p] = step[d];
             }
-        };
+        }
+
         // One particle: its sums, then the rest.
-        auto finish = [&](const auto &st, std::size_t p) __attribute__((always_inline)) {
+        template <class Point>
+        [[gnu::always_inline]] void finish(const Point &st, std::size_t p) {
             R sum;
             H dsum[D], osum[D];
-            st.template gather<Gradient, T::moments>(g, vel, sum, dsum, osum);
+            st.template gather<Gradient, T::moments>(g_, vel_, sum, dsum, osum);
             gathered(st, p, sum, dsum, osum);
-        };
-        // With the kinematics fused in (FLIP/PIC, AVX-512): the particle side
-        // of a pack of 8 across the vector lanes. Each particle's sums go to
-        // a buffer as groups of four (v~ and, in 2D, v; in 3D v in a second
-        // buffer; a column of L each), 4 x 8 transposes turn them into one
-        // vector per quantity, and the velocity, the position step and the
-        // gradient's columns are computed and stored for the 8 at once, with
-        // the arithmetic of gathered() lane by lane. Particle by particle,
-        // the extracts from the sums and the scalar loads and stores took
-        // more than that arithmetic. A pack with a velocity fixity goes
-        // through gathered() particle by particle.
-        constexpr bool kLaneFinish =
+        }
+
+        // With the kinematics fused in (FLIP/PIC, AVX-512): the particle
+        // side of a pack of 8 across the vector lanes (finish_lanes).
+        static constexpr bool kLaneFinish =
             I == Isa::avx512 && Kinematics && !T::moments && !T::affine && TALUS_HAS_SHUFFLEVECTOR;
+
+        template <class Pack>
+        [[gnu::always_inline]] void finish_pack(const Pack &pack, std::size_t p) {
+            if constexpr (kLaneFinish) {
+                finish_lanes(pack, p);
+            } else {
+                for (std::size_t j = 0; j < pack.size(); ++j) {
+                    if constexpr (Kinematics) prefetch_material(s_, p + j);
+                    finish(pack.lane(j), p + j);
+                }
+            }
+        }
+
+        // Each particle's sums go to a buffer as groups of four (v~ and, in
+        // 2D, v; in 3D v in a second buffer; a column of L each), 4 x 8
+        // transposes turn them into one vector per quantity, and the
+        // velocity, the position step and the gradient's columns are
+        // computed and stored for the 8 at once, with gathered()'s
+        // arithmetic lane by lane. Particle by particle, the extracts from
+        // the sums and the scalar loads and stores took more than that
+        // arithmetic. A pack with a velocity fixity goes through gathered()
+        // particle by particle.
         struct Sums {
             alignas(64) double pic[32], old[D == 3 ? 32 : 1], grad[D][32];
         };
-        auto finish_pack = [&](const auto &pack, std::size_t p) __attribute__((always_inline)) {
+        template <class Pack>
+        [[gnu::always_inline]] void finish_lanes([[maybe_unused]] const Pack &pack,
+                                                 [[maybe_unused]] std::size_t p) {
 #if TALUS_HAS_SHUFFLEVECTOR
-            if constexpr (kLaneFinish) {
-                static_assert(std::decay_t<decltype(pack)>::size() == 8,
-                              "a pack is one 8-lane vector a quantity");
-                using V = talus::Lanes<8>::V;
-                Sums q;
-                for (std::size_t j = 0; j < 8; ++j) {
-                    prefetch_material(s, p + j);
-                    R sum;
-                    H dsum[D], osum[D];
-                    pack.lane(j).template gather<Gradient, false>(g, vel, sum, dsum, osum);
-                    const std::size_t at = quad_at(j);
-                    if constexpr (D == 2) {
-                        store_record(q.pic + at, sum);
-                    } else {
-                        H lo, hi;
-                        first_half(sum, lo);
-                        hi = __builtin_shufflevector(sum, sum, 4, 5, 6, 7);
-                        store_record(q.pic + at, lo);
-                        store_record(q.old + at, hi);
-                    }
-                    for (int c = 0; c < D; ++c)
-                        store_record(q.grad[c] + at, dsum[c]);
-                }
-                std::uint32_t fixed = 0;
-                for (std::size_t j = 0; j < 8; ++j)
-                    fixed |= s.fix_mask[p + j];
-                if (fixed != 0) [[unlikely]] {
-                    for (std::size_t j = 0; j < 8; ++j) {
-                        const std::size_t at = quad_at(j);
-                        R sum;
-                        H dsum[D];
-                        const H osum[D]{};
-                        if constexpr (D == 2) {
-                            load_record(q.pic + at, sum);
-                        } else {
-                            H lo, hi;
-                            load_record(q.pic + at, lo);
-                            load_record(q.old + at, hi);
-                            sum = __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 4, 5, 6, 7);
-                        }
-                        for (int c = 0; c < D; ++c)
-                            load_record(q.grad[c] + at, dsum[c]);
-                        gathered(pack.lane(j), p + j, sum, dsum, osum);
-                    }
-                    return;
-                }
-                V pic[4], old[4], grad[D][4];
-                quads_to_lanes(q.pic, pic);
-                if constexpr (D == 3) quads_to_lanes(q.old, old);
-                for (int c = 0; c < D; ++c)
-                    quads_to_lanes(q.grad[c], grad[c]);
-                double *Lp = L_block + (p - block_begin);
-                for (int r = 0; r < D; ++r)
-                    for (int c = 0; c < D; ++c)
-                        store_vector<8>(Lp + static_cast<std::size_t>(3 * r + c) * L_column,
-                                        grad[c][r]);
-                for (int d = 0; d < D; ++d) {
-                    const std::size_t dd = static_cast<std::size_t>(d);
-                    const V vp = pic[d];
-                    V vo;
-                    if constexpr (D == 3)
-                        vo = old[d];
-                    else
-                        vo = pic[vs + dd];
-                    V v, x;
-                    load_vector<8>(&s.v[dd][p], v);
-                    load_vector<8>(&s.x[dd][p], x);
-                    const V vnew = vp + alpha * (v - vo);
-                    store_vector<8>(&s.v[dd][p], vnew);
-                    V step = second ? 0.5 * dt * (vp + vo) : dt * vp;
-                    // The step rounded before it is added, as in gathered()
-                    // (where a fixity may change it): the empty asm keeps
-                    // the compiler from fusing its product into the add.
-                    __asm__("" : "+v"(step));
-                    store_vector<8>(&s.x[dd][p], x + step);
-                }
+            static_assert(Pack::size() == 8, "a pack is one 8-lane vector a quantity");
+            Sums q;
+            gather_lanes(pack, p, q);
+            std::uint32_t fixed = 0;
+            for (std::size_t j = 0; j < 8; ++j)
+                fixed |= s_.fix_mask[p + j];
+            if (fixed != 0) [[unlikely]] {
+                fixed_lanes(pack, p, q);
                 return;
             }
-#endif
-            for (std::size_t j = 0; j < pack.size(); ++j) {
-                if constexpr (Kinematics) prefetch_material(s, p + j);
-                finish(pack.lane(j), p + j);
+            using V = talus::Lanes<8>::V;
+            V pic[4], old[4], grad[D][4];
+            quads_to_lanes(q.pic, pic);
+            if constexpr (D == 3) quads_to_lanes(q.old, old);
+            for (int c = 0; c < D; ++c)
+                quads_to_lanes(q.grad[c], grad[c]);
+            double *Lp = L_block_ + (p - block_begin_);
+            for (int r = 0; r < D; ++r)
+                for (int c = 0; c < D; ++c)
+                    store_vector<8>(Lp + static_cast<std::size_t>(3 * r + c) * L_column_,
+                                    grad[c][r]);
+            for (int d = 0; d < D; ++d) {
+                const std::size_t dd = static_cast<std::size_t>(d);
+                const V vp = pic[d];
+                V vo;
+                if constexpr (D == 3)
+                    vo = old[d];
+                else
+                    vo = pic[vs + dd];
+                V v, x;
+                load_vector<8>(&s_.v[dd][p], v);
+                load_vector<8>(&s_.x[dd][p], x);
+                V vnew, step;
+                blended_velocity(vp, vo, v, alpha_, vnew);
+                store_vector<8>(&s_.v[dd][p], vnew);
+                position_step(vp, vo, dt_, second_, step);
+                // The step rounded before it is added, as in gathered()
+                // (where a fixity may change it): the empty asm keeps the
+                // compiler from fusing its product into the add.
+                __asm__("" : "+v"(step));
+                store_vector<8>(&s_.x[dd][p], x + step);
             }
-        };
-        auto body = [&](auto near, std::size_t p) __attribute__((always_inline)) {
+#endif
+        }
+
+#if TALUS_HAS_SHUFFLEVECTOR
+        // The 8 particles' sums, gathered one by one, into q by quads.
+        template <class Pack>
+        [[gnu::always_inline]] void gather_lanes(const Pack &pack, std::size_t p, Sums &q) {
+            for (std::size_t j = 0; j < 8; ++j) {
+                prefetch_material(s_, p + j);
+                R sum;
+                H dsum[D], osum[D];
+                pack.lane(j).template gather<Gradient, false>(g_, vel_, sum, dsum, osum);
+                const std::size_t at = quad_at(j);
+                if constexpr (D == 2) {
+                    store_record(q.pic + at, sum);
+                } else {
+                    H lo, hi;
+                    first_half(sum, lo);
+                    hi = __builtin_shufflevector(sum, sum, 4, 5, 6, 7);
+                    store_record(q.pic + at, lo);
+                    store_record(q.old + at, hi);
+                }
+                for (int c = 0; c < D; ++c)
+                    store_record(q.grad[c] + at, dsum[c]);
+            }
+        }
+
+        // A pack with a fixity: each particle through gathered() from its
+        // sums in q.
+        template <class Pack>
+        [[gnu::always_inline]] void fixed_lanes(const Pack &pack, std::size_t p, const Sums &q) {
+            for (std::size_t j = 0; j < 8; ++j) {
+                const std::size_t at = quad_at(j);
+                R sum;
+                H dsum[D];
+                const H osum[D]{};
+                if constexpr (D == 2) {
+                    load_record(q.pic + at, sum);
+                } else {
+                    H lo, hi;
+                    load_record(q.pic + at, lo);
+                    load_record(q.old + at, hi);
+                    sum = __builtin_shufflevector(lo, hi, 0, 1, 2, 3, 4, 5, 6, 7);
+                }
+                for (int c = 0; c < D; ++c)
+                    load_record(q.grad[c] + at, dsum[c]);
+                gathered(pack.lane(j), p + j, sum, dsum, osum);
+            }
+        }
+#endif
+
+        template <bool Near>
+        [[gnu::always_inline]] void body(std::size_t p) {
             St st;
-            st.template eval<decltype(near)::value, T::moments>(g, s, p);
+            st.template eval<Near, T::moments>(g_, s_, p);
             finish(st, p);
-        };
-        auto near_face = [&](std::size_t p) __attribute__((always_inline)) {
-            body(std::true_type{}, p);
-        };
-        auto one = [&](std::size_t p) __attribute__((always_inline)) {
-            if constexpr (Kinematics) prefetch_material(s, p);
-            if (St::interior(g, s, p)) [[likely]]
-                body(std::false_type{}, p);
-            else
+        }
+
+        // The uniform kernel inline, the clamped one near a face out of line.
+        [[gnu::always_inline]] void one(std::size_t p) {
+            if constexpr (Kinematics) prefetch_material(s_, p);
+            if (St::interior(g_, s_, p)) [[likely]] {
+                body<false>(p);
+            } else {
+                auto near_face = [this](std::size_t q) __attribute__((always_inline)) {
+                    body<true>(q);
+                };
                 OutOfLine<I>::call(near_face, p);
-        };
-        auto points = [&](std::size_t begin, std::size_t end) __attribute__((always_inline)) {
+            }
+        }
+
+        [[gnu::always_inline]] void points(std::size_t begin, std::size_t end) {
             std::size_t p = begin;
             if constexpr (requires { S::interior_margin; }) {
                 // Packs of N particles, their stencils evaluated together
@@ -288,9 +341,9 @@ struct G2pMotionKernel {
                     // Within the chunk (the lines past it are another
                     // thread's to write).
                     if constexpr (Kinematics)
-                        if (args.end - p >= (kMotionPacksAhead + 1) * N)
-                            prefetch_motion(s, p + kMotionPacksAhead * N);
-                    if (pack.template eval_run<T::moments>(g, s, p)) [[likely]] {
+                        if (args_.end - p >= (kMotionPacksAhead + 1) * N)
+                            prefetch_motion(s_, p + kMotionPacksAhead * N);
+                    if (pack.template eval_run<T::moments>(g_, s_, p)) [[likely]] {
                         finish_pack(pack, p);
                     } else {
                         for (std::size_t j = 0; j < N; ++j)
@@ -300,18 +353,21 @@ struct G2pMotionKernel {
             }
             for (; p < end; ++p)
                 one(p);
-        };
-        if constexpr (Kinematics) {
-            const std::size_t B = args.blocks->block_size();
-            for (; block_begin < args.end; block_begin += B) {
-                const std::size_t block_end = std::min(args.end, block_begin + B);
-                points(block_begin, block_end);
-                args.blocks->take(si, block_begin, block_end - block_begin);
-            }
-        } else {
-            points(args.begin, args.end);
         }
-    }
+
+        const Args &args_;
+        const GridGeometry &g_;
+        const double *vel_;
+        const double dt_, alpha_;
+        const bool second_, move_, bspline_;
+        const Loads &loads_;
+        ParticleSet &s_;
+        // With the update fused in: the block's gradients, by columns
+        // (MaterialUpdate::gradient_buffer).
+        double *const L_block_;
+        const std::size_t L_column_;
+        std::size_t block_begin_;
+    };
 };
 
 // Velocity (the FLIP/PIC blend or PIC with an affine matrix), the position
@@ -375,8 +431,8 @@ struct G2pGradientKernel {
             }
         };
         // As in the motion kernel: the uniform kernel inline, the clamped
-        // one out of line (a stencil evaluation left to the compiler was not
-        // inlined for the cubic B-spline: 8 % of a USAVG step in a call).
+        // one out of line (a stencil evaluation left to the compiler is not
+        // inlined for the cubic B-spline, and the call costs a USAVG step).
         auto near_face = [&](std::size_t p) __attribute__((always_inline)) {
             body(std::true_type{}, p);
         };

@@ -3,7 +3,7 @@
 // (kinematics.cpp; the stencil packs of stencil.hpp).
 #pragma once
 
-#include "isa.hpp"
+#include "kernels/isa.hpp"
 
 #include <cstddef>
 #include <cstdint>
@@ -13,8 +13,8 @@ namespace talus {
 
 // A vector of N doubles (V), of N 64-bit integers (I), and V at a double's
 // alignment (U: the type of a vector load or store at any double).
-// Explicit per N: a dependent vector_size in a template is not a vector in
-// GCC 12.
+// Explicit per N: the compiler does not take a dependent vector_size in a
+// template as a vector.
 template <int N>
 struct Lanes;
 template <>
@@ -47,9 +47,9 @@ inline constexpr int kPointLanes = I == Isa::avx512 ? 8
 // change the calling convention with the target.) The vector is built whole
 // from its lanes, which the compiler does with inserts in registers;
 // through an array on the stack, a vector load of eight scalar stores waits
-// for them (no store forwarding): that made the kinematics' packs slower
-// than its scalar code. GCC 12 reports the whole-vector assignment as a
-// read of an unset value, wrongly.
+// for them (no store forwarding), which makes the kinematics' packs slower
+// than its scalar code. GCC reports the whole-vector assignment as a read
+// of an unset value, wrongly.
 #if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
@@ -364,8 +364,8 @@ constexpr std::size_t quad_at(std::size_t j) { return 8 * (j % 4) + 4 * (j / 4);
 
 // Whether any lane of v is positive (v: lanes of ones and zeros, from
 // selects with vector arms). Summed by halves within the vector: a test per
-// lane, or an AND of compare masks, GCC 12 builds from scalar compares one
-// lane at a time when the target has no 64-bit mask vectors (AVX-512
+// lane, or an AND of compare masks, the compiler builds from scalar compares
+// one lane at a time when the target has no 64-bit mask vectors (AVX-512
 // without DQ).
 template <int N>
 [[gnu::always_inline]] inline bool any_lane(const typename Lanes<N>::V &lanes) {

@@ -1,6 +1,6 @@
-#include "p2g.hpp"
+#include "method/p2g.hpp"
 
-#include "p2g_kernels.hpp"
+#include "kernels/p2g_kernels.hpp"
 
 namespace talus {
 

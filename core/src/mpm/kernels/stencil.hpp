@@ -24,9 +24,9 @@
 // are still per-axis products, so the same sums serve both.
 #pragma once
 
-#include "grid.hpp"
-#include "isa.hpp"
-#include "lanes.hpp"
+#include "kernels/isa.hpp"
+#include "kernels/lanes.hpp"
+#include "state/grid.hpp"
 
 #include <talus/mpm/particles.hpp>
 #include <talus/mpm/shape_functions.hpp>
@@ -47,16 +47,14 @@ inline constexpr int kLanes = static_cast<int>(node::kRecord);
 //
 //   Vec8:  one vector of the compiler's vector extension, which it maps onto
 //          one AVX-512 register. Used in the AVX-512 kernels (isa.hpp);
-//          plain loops over 8 doubles came out as scalar and half-register
-//          code there (GCC 12).
+//          plain loops over 8 doubles compile to scalar and half-register
+//          code there.
 //   Split: 8 / N vectors of N doubles, the target's own registers: N = 2
 //          (Arr8) for the baseline target (SSE2), N = 4 (Quad8) for AVX2.
 //          Vec8 on those targets is lowered through the stack: setting one
 //          lane stores it there and the next use loads the whole vector
-//          back, which waits on the store. On SSE2 that was three times
-//          slower than Arr8; on AVX2, where the kernels used Vec8 until
-//          Quad8 came, a step took four to five times as long as with
-//          Quad8 (docs/performance.md).
+//          back, which waits on the store: the kernels run much slower than
+//          with Split (bench/results/2026-11-24-stencil-packs-avx2-kernels-epyc-zen4.md).
 //
 // All are passed by reference only: a vector by value would change the
 // calling convention with the target's vector width.
@@ -89,7 +87,7 @@ struct Split {
         __attribute__((vector_size(N * sizeof(double)), aligned(8), may_alias));
     Part q[K / N];
     [[gnu::always_inline]] double operator[](std::size_t k) const { return q[k / N][k % N]; }
-    // Lane k becomes x: a blend of x into its part (GCC 12 reports an
+    // Lane k becomes x: a blend of x into its part (the compiler reports an
     // element assignment as a read of an uninitialised part).
     [[gnu::always_inline]] void set(std::size_t k, double x) { blend_lane(q[k / N], k % N, x); }
     [[gnu::always_inline]] void load(const double *r) {
@@ -354,8 +352,8 @@ struct Stencil : StencilSums<Stencil<D, S>, D, S::width> {
     // Almost every particle is away from the faces, where the uniform kernel
     // holds. The hot kernels test this once per particle and run their
     // per-particle body in two instantiations, the uniform one inline and
-    // the clamped one out of line: one branch inside the shared body costs
-    // 10 % in 3D through register allocation alone.
+    // the clamped one out of line: one branch inside the shared body slows
+    // the uniform one through register allocation alone.
     [[gnu::always_inline]] static bool interior(const GridGeometry &g, const ParticleSet &s,
                                                 std::size_t p) {
         bool inner = true;
@@ -512,8 +510,8 @@ struct StencilPack {
     // the P2G and G2P kernels contract their multiply-adds where the
     // target has them, eval_bounded (baseline) does not, and this keeps a
     // particle's weights the bits they had when such a pack went particle
-    // by particle. It did, all N of them, outside the lanes: 11.5 % of the
-    // packs of the 3D benchmark block (1.2 % in 2D). Out of line and
+    // by particle. It did, all N of them, outside the lanes
+    // (bench/results/2026-11-29-near-face-packs-ice-lake.md). Out of line and
     // scalar: a function does not inherit the AVX-512 kernel's target
     // (OutOfLine), and this one takes nothing but arrays.
     [[gnu::noinline]] void clamp_lanes(const GridGeometry &g, const double (&at)[D][N]) {
@@ -567,9 +565,10 @@ struct IsaVersions {
 // Calls f(p) in a function of its own compiled for instruction set I: the
 // kernels' rare path (a particle near a face) kept out of their loop. A
 // function does not inherit its caller's target: a plain noinline lambda in
-// the AVX-512 kernel was compiled for the baseline, where Vec8 is lowered
-// through the stack, and the 6 % of the 3D block's particles next to a face
-// took a third of the P2G and G2P time. f must be always_inline.
+// the AVX-512 kernel is compiled for the baseline, where Vec8 is lowered
+// through the stack, and the particles next to a face would run that slow
+// code (bench/results/2026-11-24-material-block-and-what-was-tried-epyc-zen4.md).
+// f must be always_inline.
 template <Isa I>
 struct OutOfLine {
     template <class F>

@@ -1,6 +1,6 @@
-#include "boundary.hpp"
+#include "method/boundary.hpp"
 
-#include "parallel.hpp"
+#include "parallel/parallel.hpp"
 
 #include <fmt/format.h>
 

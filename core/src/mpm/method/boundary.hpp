@@ -3,7 +3,7 @@
 // side of particle velocity fixities.
 #pragma once
 
-#include "grid.hpp"
+#include "state/grid.hpp"
 
 #include <talus/mpm/comm.hpp>
 #include <talus/mpm/scenario.hpp>

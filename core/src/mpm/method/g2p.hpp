@@ -1,9 +1,9 @@
 // Phase 3 of the cycle (seed 000): grid to particles.
 #pragma once
 
-#include "grid.hpp"
-#include "isa.hpp"
-#include "loads.hpp"
+#include "kernels/isa.hpp"
+#include "method/loads.hpp"
+#include "state/grid.hpp"
 
 #include <talus/mpm/particles.hpp>
 #include <talus/mpm/scenario.hpp>
@@ -27,6 +27,22 @@ struct G2pTargets {
 // consistency"): not at all (their scheme moves them in the gradient pass),
 // by dt v~, or by dt (v + v~) / 2. The step goes into ParticleSet::dx.
 enum class Motion { none, end_velocity, mean_velocity };
+
+// A particle's new velocity and position step along one axis from the
+// velocities G2P maps to it, the end one v~ and the start one v (eqs. 36
+// and 37), written once for a double or a vector pack of them (X): the
+// FLIP/PIC blend v~ + alpha (v_p - v), and dt v~ at first order or
+// dt (v + v~) / 2 at second (docs/theory.md on eq. 37).
+template <class X>
+[[gnu::always_inline]] inline void blended_velocity(const X &end, const X &start, const X &v_p,
+                                                    double alpha, X &v_new) {
+    v_new = end + alpha * (v_p - start);
+}
+template <class X>
+[[gnu::always_inline]] inline void position_step(const X &end, const X &start, double dt,
+                                                 bool second, X &step) {
+    step = second ? 0.5 * dt * (end + start) : dt * end;
+}
 
 // Velocity by the transfer (eq. 36, or PIC with the affine matrix), the
 // position step by `motion`, and with `store_gradient` the velocity

@@ -1,6 +1,6 @@
-#include "grid_update.hpp"
+#include "method/grid_update.hpp"
 
-#include "parallel.hpp"
+#include "parallel/parallel.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,8 +1,8 @@
 // Phase 2 of the cycle (seed 000): the grid update.
 #pragma once
 
-#include "boundary.hpp"
-#include "grid.hpp"
+#include "method/boundary.hpp"
+#include "state/grid.hpp"
 
 #include <talus/mpm/scenario.hpp>
 

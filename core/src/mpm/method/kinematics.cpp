@@ -4,20 +4,21 @@
 // rotation of the start stress) is a few dozen multiplies and adds and two
 // divisions on values that sit 9 or 6 doubles apart in the particle and
 // ABI arrays. Point by point it is scalar code bound by its operation count
-// and its divisions (16-18 % of a step in 2D and 3D); the compiler does not
-// vectorise it across points by itself (GCC 12: the 9-double groups have no
-// vector type). Here N consecutive points are loaded into the N lanes of a
-// vector (one lane per point), computed together and stored back to their
-// places: N points for the cost of about one, less the loads and stores.
+// and its divisions; the compiler does not vectorise it across points by
+// itself (it finds no vector type for the 9-double groups). Here N
+// consecutive points are loaded into the N lanes of a vector (one lane per
+// point), computed together and stored back to their places: N points for
+// the cost of about one, less the loads and stores
+// (bench/results/2026-11-24-material-block-and-what-was-tried-epyc-zen4.md).
 //
 // This file is compiled without contraction of multiplies and adds into
 // fused multiply-adds (-ffp-contract=off, core/CMakeLists.txt): every lane
 // then rounds as the scalar code does, whatever the instruction set, so the
 // packs, the scalar remainder and dilation_sums (which recomputes J) agree
 // to the last bit, and so do runs on machines with different vector widths.
-#include "kinematics.hpp"
+#include "method/kinematics.hpp"
 
-#include "lanes.hpp"
+#include "kernels/lanes.hpp"
 
 #include <algorithm>
 #include <cstring>

@@ -3,9 +3,9 @@
 // (eq. 42), div v, and the objective rotation of the start stress.
 #pragma once
 
-#include "grid.hpp"
-#include "isa.hpp"
-#include "parallel.hpp"
+#include "kernels/isa.hpp"
+#include "parallel/parallel.hpp"
+#include "state/grid.hpp"
 
 #include <talus/mpm/particles.hpp>
 #include <talus/mpm/stress_rotation.hpp>
@@ -110,9 +110,10 @@ std::size_t kinematics_block(ParticleSet &s, std::size_t begin, std::size_t coun
 // added one after the other (de and work_start as kinematics_block left
 // them, per point k at 6 k and k). In packs across the vector lanes of
 // `isa`, with the arithmetic of one point at a time (the stress, 6 values a
-// point, is moved into the lanes by transposes). Point by point, in the
-// material update's block, it took most of that function's 4.5 % of a 2D
-// step at one thread; in packs 2.1 % (perf).
+// point, is moved into the lanes by transposes). In packs rather than point
+// by point after the model's call, for the kinematics' reason: N points for
+// about the cost of one
+// (bench/results/2026-11-26-xeon-2.1ghz-against-4eb0ad2-small-parts.md).
 void stress_work_block(ParticleSet &s, std::size_t begin, std::size_t count, const double *de,
                        const double *work_start, Isa isa);
 

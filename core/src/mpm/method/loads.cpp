@@ -1,4 +1,4 @@
-#include "loads.hpp"
+#include "method/loads.hpp"
 
 #include <algorithm>
 #include <cmath>

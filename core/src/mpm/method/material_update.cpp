@@ -1,4 +1,4 @@
-#include "material_update.hpp"
+#include "method/material_update.hpp"
 
 #include <talus/material/crash_report.hpp>
 #include <talus/material/cut_step.hpp>

@@ -7,9 +7,9 @@
 // never live in the particle arrays.
 #pragma once
 
-#include "grid.hpp"
-#include "kinematics.hpp"
-#include "parallel.hpp"
+#include "method/kinematics.hpp"
+#include "parallel/parallel.hpp"
+#include "state/grid.hpp"
 
 #include <talus/material/plugin_loader.hpp>
 #include <talus/mpm/material_hook.hpp>

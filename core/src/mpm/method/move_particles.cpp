@@ -1,7 +1,7 @@
-#include "move_particles.hpp"
+#include "method/move_particles.hpp"
 
-#include "lanes.hpp"
-#include "parallel.hpp"
+#include "kernels/lanes.hpp"
+#include "parallel/parallel.hpp"
 
 #include <talus/error.hpp>
 
@@ -169,12 +169,13 @@ void end_block(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &g
 // points it did (a multiple of N), leaving r as the scalar loop would have
 // left it there, so that end_block goes on from that point. Point by point
 // the pass is about 35 scalar operations with compares and conversions to
-// int: 9 % of a 2D step. The results are those of end_block exactly: every
-// lane does its arithmetic (the sums of v^2 in the same order, this file
-// compiled without fused multiply-adds), and the rest are maxima, counts
-// and integers. The cells are computed in doubles (exact: whole numbers
-// below 2^53) and converted to int32 at the end, which every target has in
-// vector form (the 64-bit conversions need AVX-512DQ).
+// int, for every point at every step
+// (bench/results/2026-11-25-lane-tests-epyc-zen4.md). The results are those
+// of end_block exactly: every lane does its arithmetic (the sums of v^2 in
+// the same order, this file compiled without fused multiply-adds), and the
+// rest are maxima, counts and integers. The cells are computed in doubles
+// (exact: whole numbers below 2^53) and converted to int32 at the end, which
+// every target has in vector form (the 64-bit conversions need AVX-512DQ).
 template <int N, int D, bool Add>
 [[gnu::always_inline]] inline std::size_t
 end_packs(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &geo, const Domain &domain,
@@ -183,7 +184,7 @@ end_packs(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &geo, c
     typedef std::int32_t I32 __attribute__((vector_size(N * sizeof(std::int32_t))));
     if (count < N) return 0;
     // Every test is a compare of doubles selecting doubles, and the counts
-    // are sums of ones in doubles (exact below 2^53): GCC 12 built the
+    // are sums of ones in doubles (exact below 2^53): the compiler builds the
     // lanes of an integer mask one by one from scalar compares. An open
     // face's bound is an infinity, which nothing passes (nor NaN).
     constexpr double inf = std::numeric_limits<double>::infinity();
@@ -209,7 +210,7 @@ end_packs(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &geo, c
     V speeds = V{} + r.speed;
     V depth = V{} + r.depth;
     V outside{}, held{}, moved{};
-    // The arms of every select are vectors: with a scalar arm GCC 12
+    // The arms of every select are vectors: with a scalar arm the compiler
     // builds the result lane by lane, through branches.
     const V zero{}, one = zero + 1.0;
     // The cells' range per axis, lane by lane (whole numbers in doubles).
@@ -234,10 +235,10 @@ end_packs(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &geo, c
             }
             // Through a closed face: back onto it, counted, the overshoot
             // kept (only one of the two can hold). Selects of one condition
-            // each: nested ones sharing their conditions GCC 12 built lane
-            // by lane. Where the scalar loop takes 0 as the overshoot (inside,
-            // or at an open face), these are negative, -inf or NaN, none of
-            // which the maximum (from 0) takes.
+            // each: nested ones sharing their conditions the compiler builds
+            // lane by lane. Where the scalar loop takes 0 as the overshoot
+            // (inside, or at an open face), these are negative, -inf or NaN,
+            // none of which the maximum (from 0) takes.
             held += xd < stop_lo[d] ? one : zero;
             held += xd > stop_hi[d] ? one : zero;
             const V under = stop_lo[d] - xd, over = xd - stop_hi[d];
@@ -246,8 +247,8 @@ end_packs(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &geo, c
             xd = xd < stop_lo[d] ? stop_lo[d] : xd;
             xd = xd > stop_hi[d] ? stop_hi[d] : xd;
             store_vector<N>(x[d] + p, xd);
-            // Sums, not a select of a select: GCC 12 folds that into an AND
-            // of two masks, which it builds lane by lane without AVX-512DQ.
+            // Sums, not a select of a select: the compiler folds that into an
+            // AND of two masks, which it builds lane by lane without AVX-512DQ.
             out += xd >= lo[d] ? zero : one;
             out += xd <= hi[d] ? zero : one;
             v2 += vd * vd;
@@ -272,8 +273,8 @@ end_packs(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &geo, c
         }
         outside += out > zero ? one : zero;
         // The square roots as one vector instruction (this file is compiled
-        // without errno for sqrt, which kept them one by one: 8 scalar
-        // roots a pack, 2 % of a 2D step); correctly rounded either way.
+        // without errno for sqrt, which kept them one by one: N scalar
+        // roots a pack); correctly rounded either way.
         // The maximum lane by lane as std::max takes it (a NaN never
         // enters), the lanes' maxima taken after the loop: one dependent
         // select a pack instead of N. The speeds are positive or +0

@@ -3,9 +3,9 @@
 // (their slabs and cells for the ordering, max(c + |v|) for its dt).
 #pragma once
 
-#include "grid.hpp"
-#include "isa.hpp"
-#include "ordering.hpp"
+#include "kernels/isa.hpp"
+#include "parallel/ordering.hpp"
+#include "state/grid.hpp"
 
 #include <talus/mpm/particles.hpp>
 

@@ -1,10 +1,10 @@
 // Phase 1 of the cycle (seed 000): particles to grid.
 #pragma once
 
-#include "grid.hpp"
-#include "isa.hpp"
-#include "loads.hpp"
-#include "ordering.hpp"
+#include "kernels/isa.hpp"
+#include "method/loads.hpp"
+#include "parallel/ordering.hpp"
+#include "state/grid.hpp"
 
 #include <talus/mpm/particles.hpp>
 
@@ -23,6 +23,30 @@ struct P2gSources {
     bool affine; // APIC / TPIC: momentum carries m C_p (x_i - x_p)
     Isa isa;     // the kernels' instruction set
 };
+
+// A particle's contributions to its nodes, written once for a double or a
+// vector pack of them (X). Per unit weight: the momentum m v (eq. 29) and
+// the external force m g + f (eq. 21, f the particle's applied load); per
+// unit gradient of the weight along c, the internal force -V sigma[:, c]
+// (eq. 20), V = J V0 the current volume, sigma in Voigt order (xx, yy, zz,
+// xy, yz, zx), its in-plane part for D = 2.
+template <class X>
+[[gnu::always_inline]] inline void particle_momentum(const X &m, const X &v, X &momentum) {
+    momentum = m * v;
+}
+template <class X>
+[[gnu::always_inline]] inline void external_force(const X &m, double g, const X &load, X &force) {
+    force = load + m * g;
+}
+template <int D, class X>
+[[gnu::always_inline]] inline void internal_force(const X &volume, const X *sigma,
+                                                  X (&per_gradient)[D][D]) {
+    constexpr int voigt[3][3] = {{0, 3, 5}, {3, 1, 4}, {5, 4, 2}};
+    const X minus_V = -volume;
+    for (int c = 0; c < D; ++c)
+        for (int r = 0; r < D; ++r)
+            per_gradient[c][r] = minus_V * sigma[voigt[r][c]];
+}
 
 // Nodal mass (eq. 28) and momentum with the affine term (eq. 29); the nodes
 // fixed particles reach are marked (node::kFixity).

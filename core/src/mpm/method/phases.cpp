@@ -2,16 +2,13 @@
 // name and hands its kernel the parts of the state it reads and writes.
 #include "simulation_state.hpp"
 
-#include "grid_update.hpp"
-#include "ticks.hpp"
+#include "method/grid_update.hpp"
+#include "profile/split_pass_clock.hpp"
 
 #include <talus/material/cut_step.hpp>
 #include <talus/material/plugin_loader.hpp>
 
 #include <fmt/format.h>
-
-#include <chrono>
-#include <cstdint>
 
 namespace talus {
 
@@ -72,52 +69,27 @@ void Simulation::Impl::g2p_velocity(double dt, bool store_gradient) {
 
 namespace {
 
-// The fused G2P's blocks go straight into the material update, then to the
-// step's end. The time each thread spends in the two is kept apart (one
-// cache line each) so that the phases' shares stay those of the split
-// pipeline: three reads a block of the processor's cycle counter (ticks.hpp),
-// the middle one shared, turned into seconds by the pass's own rate of ticks
-// to seconds. (Three reads of the system's clock a block of 128 points were
-// 1 % of a 2D step: a call each, and under a hypervisor a slow one.)
-class MaterialBlocks final : public GradientBlocks {
-  public:
-    MaterialBlocks(MaterialUpdate &m, StepEndBlocks &ends, std::vector<ParticleSet> &sets,
-                   const Increment &inc, UpdateFailures &failures)
-        : m_(m), ends_(ends), sets_(sets), inc_(inc), failures_(failures),
-          ticks_(static_cast<std::size_t>(par::max_threads())) {}
-    std::size_t block_size() const override { return m_.block_size(); }
-    double *buffer() override { return m_.gradient_buffer(); }
-    void take(std::size_t set, std::size_t begin, std::size_t count) override {
-        const std::uint64_t t0 = ticks();
-        m_.block(sets_[set], set, begin, count,
-                 Gradients::columns(m_.gradient_buffer(), m_.block_size()), inc_, failures_);
-        const std::uint64_t t1 = ticks();
-        ends_.block(set, begin, count);
-        const std::uint64_t t2 = ticks();
-        Ticks &mine = ticks_[static_cast<std::size_t>(par::thread_index())];
-        mine.material += ticks_between(t0, t1);
-        mine.end += ticks_between(t1, t2);
-    }
-    // The material blocks' and the end blocks' ticks, per thread on average.
-    double material_ticks() const { return average(&Ticks::material); }
-    double end_ticks() const { return average(&Ticks::end); }
+// The fused USL's hand-off of each block of points G2P has finished, while
+// their data are in cache: first the kinematics and material update of the
+// block from its velocity gradients, then the block's step end (positions,
+// faces, the next dt's speed).
+struct UpdateThenEnd {
+    MaterialUpdate &materials;
+    StepEndBlocks &ends;
+    std::vector<ParticleSet> &sets;
+    const Increment &inc;
+    UpdateFailures &failures;
 
-  private:
-    struct alignas(64) Ticks {
-        std::uint64_t material = 0, end = 0;
-    };
-    double average(std::uint64_t Ticks::*part) const {
-        double sum = 0.0;
-        for (const Ticks &t : ticks_)
-            sum += static_cast<double>(t.*part);
-        return sum / static_cast<double>(ticks_.size());
+    std::size_t block_size() const { return materials.block_size(); }
+    double *buffer() { return materials.gradient_buffer(); }
+    void first(std::size_t set, std::size_t begin, std::size_t count) {
+        materials.block(sets[set], set, begin, count,
+                        Gradients::columns(materials.gradient_buffer(), materials.block_size()),
+                        inc, failures);
     }
-    MaterialUpdate &m_;
-    StepEndBlocks &ends_;
-    std::vector<ParticleSet> &sets_;
-    const Increment &inc_;
-    UpdateFailures &failures_;
-    std::vector<Ticks> ticks_;
+    void second(std::size_t set, std::size_t begin, std::size_t count) {
+        ends.block(set, begin, count);
+    }
 };
 
 } // namespace
@@ -128,24 +100,18 @@ void Simulation::Impl::g2p_velocity_and_update(double t, double dt) {
     step_ends.begin(sets, grid.geo, domain, order, PositionStep::already_moved,
                     materials.block_size(), isa);
     const Increment inc{t, dt, step + 1, nullptr, nullptr};
-    MaterialBlocks blocks(materials, step_ends, sets, inc, failures);
-    const auto s0 = std::chrono::steady_clock::now();
-    const std::uint64_t t0 = ticks();
-    talus::g2p_velocity_and_update(g2p_targets(), grid.vel.data(), dt, velocity_motion, blocks);
-    const std::uint64_t t1 = ticks();
-    const double pass =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - s0).count();
-    // The material update's and the step end's shares of the fused pass, as
-    // their own phases.
+    UpdateThenEnd hand_off{materials, step_ends, sets, inc, failures};
+    // The pass's time split into G2P's, the material update's and the step
+    // end's, as the split pipeline would report them.
+    SplitPassClock clock(hand_off);
+    clock.run(
+        [&](GradientBlocks &blocks) {
+            talus::g2p_velocity_and_update(g2p_targets(), grid.vel.data(), dt, velocity_motion,
+                                           blocks);
+        },
+        seconds_of(Phase::g2p), seconds_of(Phase::material_update),
+        seconds_of(Phase::move_particles));
     materials.collect();
-    const std::uint64_t pass_ticks = ticks_between(t0, t1);
-    const double per_tick = pass_ticks > 0 ? pass / static_cast<double>(pass_ticks) : 0.0;
-    const double in_blocks = blocks.material_ticks() * per_tick,
-                 in_ends = blocks.end_ticks() * per_tick;
-    auto &ph = phase_seconds;
-    ph[static_cast<std::size_t>(Phase::g2p)] += pass - in_blocks - in_ends;
-    ph[static_cast<std::size_t>(Phase::material_update)] += in_blocks;
-    ph[static_cast<std::size_t>(Phase::move_particles)] += in_ends;
     update_failed(failures, t);
     auto tm = timer(Phase::move_particles);
     step_ended(step_ends.finish());

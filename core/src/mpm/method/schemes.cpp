@@ -24,6 +24,8 @@ void Simulation::Impl::usl(double t, double dt) {
 // USL with the kinematics, the material update and the step's end done
 // block by block inside the G2P loop while the block's data are in cache:
 // no stored gradient, no position step, two passes over the particles less.
+// g2p_velocity_and_update (phases.cpp) hands each block G2P has finished to
+// MaterialUpdate::block (material_update.cpp), then to the step's end.
 void Simulation::Impl::usl_fused(double t, double dt) {
     p2g_momentum_and_forces();
     grid_update(t, dt, Accumulators::clear);

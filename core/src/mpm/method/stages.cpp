@@ -4,8 +4,8 @@
 // duration, or the motion died out).
 #include "simulation_state.hpp"
 
-#include "parallel.hpp"
-#include "particle_generation.hpp"
+#include "parallel/parallel.hpp"
+#include "state/particle_generation.hpp"
 
 #include <fmt/format.h>
 

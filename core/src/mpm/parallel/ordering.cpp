@@ -1,6 +1,6 @@
-#include "ordering.hpp"
+#include "parallel/ordering.hpp"
 
-#include "parallel.hpp"
+#include "parallel/parallel.hpp"
 
 #include <algorithm>
 #include <cstdint>
@@ -19,12 +19,12 @@ Ordering::Ordering(const GridGeometry &geo, std::size_t n_sets)
     // of the body, step after step, in the same core's cache; across y in
     // 3D (z too short), a slab is still one long stretch per plane of
     // cells. Across the longest axis of a domain longer than high (a
-    // slope), a slab was 250 short runs of particles and the threads'
-    // shares of P2G and of G2P crossed: 1M particles in 1000 x 250 cells
-    // ran at 26-32 M particle-steps/s at 2 threads against 41-46 M with
-    // slabs across y (docs/performance.md, "Slabs across the slowest
-    // axis"). The rule depends on the grid alone: one that followed the
-    // thread count would change the order of P2G's sums with it.
+    // slope), a slab would be one short run of particles per row and the
+    // threads' shares of P2G and of G2P would cross (docs/performance.md,
+    // "Slabs across the slowest axis";
+    // bench/results/2026-11-29-slab-axis-epyc-zen5.md). The rule depends
+    // on the grid alone: one that followed the thread count would change
+    // the order of P2G's sums with it.
     const int dim = geo.dim;
     const auto cells = [&](int d) { return geo.cells[static_cast<std::size_t>(d)]; };
     axis_ = -1;
@@ -159,13 +159,12 @@ struct KeyRange {
 //
 // The sort is a counting sort over the cells the set occupies (one pass to
 // count, one to place, in memory order so that particles of a cell keep
-// theirs), O(n + cells), with the keys computed in parallel: with the
-// permutation, a 2D sort of 1M points at two threads took 63-66 ms against
-// 70-79 (best of five, three rounds). Where the occupied cells outnumber
-// the particles (a few particles spread over a large grid) the counts
-// would cost more than they save, and std::stable_sort orders them
-// instead. Both are stable
-// sorts by the same key, so they give the same permutation.
+// theirs), O(n + cells), with the keys computed in parallel
+// (bench/results/2026-11-27-re-sort-rule.md). Where the occupied cells
+// outnumber the particles (a few particles spread over a large grid) the
+// counts would cost more than they save, and std::stable_sort orders them
+// instead. Both are stable sorts by the same key, so they give the same
+// permutation.
 void Ordering::sort(std::vector<ParticleSet> &sets) {
     std::vector<std::uint32_t> key, from, count;
     for (ParticleSet &s : sets) {

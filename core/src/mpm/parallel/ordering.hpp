@@ -7,7 +7,7 @@
 // colour (every other slab) never write the same node when width >= 4.
 #pragma once
 
-#include "grid.hpp"
+#include "state/grid.hpp"
 
 #include <talus/mpm/particles.hpp>
 
@@ -52,11 +52,10 @@ class Ordering {
     // records in the cache its predecessors filled (P2G and G2P read a
     // cell's nodes and the rows, or planes, on either side), so only the
     // descents past that window are the decay a sort repairs. Counting
-    // every descent sorted a flowing body at almost every step, where
-    // particles cross cells all the time: a spinning disk of 1.3M
-    // particles (2D) spent 36 % of its run re-sorting, and ran 1.45x as
-    // long as it did without re-sorts (docs/performance.md, "When to
-    // re-sort").
+    // every descent sorts a flowing body at almost every step, where
+    // particles cross cells all the time, and the re-sorts then cost more
+    // than the order they restore saves (docs/performance.md, "When to
+    // re-sort"; bench/results/2026-11-27-re-sort-rule.md).
     void prepare(std::vector<ParticleSet> &sets, double threshold);
     // Sorts every set by cell now.
     void sort(std::vector<ParticleSet> &sets);

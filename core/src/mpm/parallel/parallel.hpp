@@ -82,13 +82,11 @@ void for_each(std::size_t n, F &&f) {
 // is, but each thread comes back to the same items (the same particles and
 // nodes) step after step, phase after phase, as far as the work is even.
 // Where the two cores sit on different dies, each with its own last-level
-// cache (a store takes ~245 ns to reach the other core on the EPYC of
-// docs/performance.md, `talus_bench --case core_to_core`), a counter that
-// handed consecutive chunks to alternate threads sent half of the lines one
-// thread wrote to the other's cache in the next phase: the 64k 2D block at
-// 2 threads ran at 31-36 M particle-steps/s, below its one-thread rate per
-// thread, and runs at 44-45 M so (docs/performance.md, "The two cores
-// share no cache").
+// cache, a store takes long to reach the other core (`talus_bench --case
+// core_to_core`), and a counter that hands consecutive chunks to alternate
+// threads sends half of the lines one thread wrote to the other's cache in
+// the next phase (docs/performance.md, "The two cores share no cache";
+// bench/results/2026-11-29-shares-no-shared-cache-epyc-zen5.md).
 class Shares {
   public:
     Shares(std::uint64_t count, int threads)

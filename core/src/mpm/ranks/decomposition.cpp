@@ -1,4 +1,4 @@
-#include "decomposition.hpp"
+#include "ranks/decomposition.hpp"
 
 #include <talus/error.hpp>
 

@@ -4,7 +4,7 @@
 // step's end, and agreement on a failure.
 #include "simulation_state.hpp"
 
-#include "migration.hpp"
+#include "ranks/migration.hpp"
 
 #include <fmt/format.h>
 

@@ -1,4 +1,4 @@
-#include "halo.hpp"
+#include "ranks/halo.hpp"
 
 #include <talus/error.hpp>
 

@@ -7,8 +7,8 @@
 // and G2P needs no second exchange.
 #pragma once
 
-#include "decomposition.hpp"
-#include "grid.hpp"
+#include "ranks/decomposition.hpp"
+#include "state/grid.hpp"
 
 #include <talus/mpm/comm.hpp>
 

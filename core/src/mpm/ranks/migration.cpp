@@ -1,4 +1,4 @@
-#include "migration.hpp"
+#include "ranks/migration.hpp"
 
 #include <talus/error.hpp>
 

@@ -3,8 +3,8 @@
 // set (the plugin's state, of any size, included).
 #pragma once
 
-#include "decomposition.hpp"
-#include "grid.hpp"
+#include "ranks/decomposition.hpp"
+#include "state/grid.hpp"
 
 #include <talus/mpm/comm.hpp>
 #include <talus/mpm/particles.hpp>

@@ -1,6 +1,6 @@
-#include "grid.hpp"
+#include "state/grid.hpp"
 
-#include "parallel.hpp"
+#include "parallel/parallel.hpp"
 
 #include <algorithm>
 #include <cmath>

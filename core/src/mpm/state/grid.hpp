@@ -9,7 +9,7 @@
 
 #include <talus/mpm/shape_functions.hpp>
 
-#include "parallel.hpp"
+#include "parallel/parallel.hpp"
 
 #include <algorithm>
 #include <array>

@@ -1,4 +1,4 @@
-#include "particle_generation.hpp"
+#include "state/particle_generation.hpp"
 
 #include <talus/material/plugin_loader.hpp>
 

@@ -1,6 +1,6 @@
 #include <talus/mpm/particles.hpp>
 
-#include "parallel.hpp"
+#include "parallel/parallel.hpp"
 
 #include <algorithm>
 #include <cstdint>
@@ -121,7 +121,8 @@ void apply_cycles(std::byte *a, std::size_t bytes, const std::vector<std::uint32
 // The columns are independent: each is permuted by one thread, the largest
 // first, with the cycles found once. (Following the cycles per column, each
 // column tested and set a bit per particle and moved its values by calls of
-// memmove; serial, the re-sort took 4 % of a 2D step at two threads.)
+// memmove, all on one thread:
+// bench/results/2026-11-26-xeon-2.1ghz-against-4eb0ad2-small-parts.md.)
 void ParticleSet::permute(const std::vector<std::uint32_t> &from) {
     if (from.size() != n) throw std::logic_error("permute: the permutation is not the set's size");
     const std::vector<std::uint32_t> cycles = cycles_of(from);

@@ -617,9 +617,52 @@ struct Descriptors {
         return run(inst, b, err, true);
     }
 
-    // The batch loop of update (setup false) and init_state (true).
+    // The batch loop of update (setup false) and init_state (true): the
+    // batch checked, its inputs screened, then the points (quick_then_rest
+    // or point_by_point), a model's failure reported with its point.
     static std::int32_t run(const talus_instance *inst, const talus_batch *b, talus_error *err,
                             bool setup) noexcept {
+        Batch batch;
+        if (const std::int32_t refused = check_batch(inst, b, err, batch);
+            refused != TALUS_STATUS_OK)
+            return refused;
+        if (const std::int32_t bad = screen_inputs(b, err); bad != TALUS_STATUS_OK) return bad;
+        const M &self = *reinterpret_cast<const M *>(inst);
+        std::int64_t i = 0; // the point being updated, for a failure's report
+        try {
+            if constexpr (has_quick_update) {
+                if (!setup) {
+                    quick_then_rest(self, batch, i);
+                    return TALUS_STATUS_OK;
+                }
+            }
+            point_by_point(self, batch, setup, i);
+        } catch (const CutStep &e) {
+            if (err && err->struct_size >= offsetof(talus_error, message)) {
+                err->point_index = i;
+                err->cut_factor = e.factor;
+            }
+            write_message(err, e.what());
+            return TALUS_STATUS_CUT_STEP;
+        } catch (const std::exception &e) {
+            return fail(err, i,
+                        std::string("exception at point ") + std::to_string(i) + ": " + e.what());
+        } catch (...) {
+            return fail(err, i, "unknown exception at point " + std::to_string(i));
+        }
+        return TALUS_STATUS_OK;
+    }
+
+    // What the batch asks for, read once.
+    struct Batch {
+        Context ctx;
+        bool want_c = false;
+    };
+
+    // Refuses a batch the model cannot take (a null array, the wrong state
+    // size, an output the model does not give); fills `batch` otherwise.
+    static std::int32_t check_batch(const talus_instance *inst, const talus_batch *b,
+                                    talus_error *err, Batch &batch) noexcept {
         if (!inst || !b) return fail(err, -1, "update: null instance or batch");
         if (b->struct_size < offsetof(talus_batch, tangent) + sizeof(double *))
             return fail(err, -1, "update: batch structure too small for ABI 1.0");
@@ -645,206 +688,203 @@ struct Descriptors {
             return fail(err, -1,
                         "update: the model needs the increment's rotation and the host "
                         "gave none");
-
-        const M &self = *reinterpret_cast<const M *>(inst);
-        // The inputs are screened for the whole batch first, in vector-wide
-        // passes, and a failing point is looked for only when one trips. F
-        // is screened for the models that compute from it; for the others
-        // the strain increment, which the host derives from the same
-        // velocity gradient, already carries any NaN, and reading F would
-        // cost 72 bytes per point. A host that has screened them itself
-        // says so (TALUS_BATCH_INPUTS_FINITE, ABI 1.2): the solver's inputs
-        // are its screened outputs and its kinematics, tested there, and a
-        // second screen of the same values was a third of linear_elastic's
-        // batch loop.
-        const std::size_t n = b->n_points;
-        const bool screened = (b->flags & TALUS_BATCH_INPUTS_FINITE) != 0;
-        auto bad_inputs = [&](std::size_t first, std::size_t count) {
-            // Positive and finite (an infinite density passed `> 0` alone
-            // and reached the model, whose wave speed came out zero); the
-            // two tests without a branch, so that the loop vectorises.
-            bool density_ok = true;
-            for (std::size_t k = first; k < first + count; ++k) {
-                const double rho = b->density[k];
-                density_ok &= (rho > 0.0) & (rho < std::numeric_limits<double>::infinity());
-            }
-            return !density_ok || any_nonfinite(b->strain_increment + 6 * first, 6 * count) ||
-                   any_nonfinite(b->stress_start + 6 * first, 6 * count) ||
-                   (M::info.finite_strain && any_nonfinite(b->F_end + 9 * first, 9 * count)) ||
-                   (state_size > 0 &&
-                    any_nonfinite(b->state_start + state_size * first, state_size * count));
-        };
-        if (n > 0 && !screened && bad_inputs(0, n))
-            for (std::size_t k = 0; k < n; ++k)
-                if (bad_inputs(k, 1))
-                    return fail(err, static_cast<std::int64_t>(k),
-                                "non-finite input (strain increment, stress, state, density "
-                                "(or not positive), or F for a finite-strain model) at point " +
-                                    std::to_string(k));
-        using RowMat6 = Eigen::Matrix<double, 6, 6, Eigen::RowMajor>;
-        // Point k's outputs into the batch.
-        auto commit = [&](const Slot &slot, std::size_t k) {
-            // The outputs are not screened here: the host screens every
-            // plugin's outputs after the batch (NaN, infinities and
-            // non-positive wave speeds), whether built with this SDK or
-            // not, so one screen serves both.
-            double c = 0.0;
-            if (want_c) c = self.wave_speed(slot.in, slot.out);
-            // Element by element: the model has just written out.stress,
-            // in stores whose widths and overlaps its compiler chose (GCC
-            // wrote linear_elastic's as the pairs 0-1 and 1-2, then 3). A
-            // 16-byte load needing two of them waits until they reach the
-            // cache (no store forwarding): 45 % of linear_elastic's batch
-            // loop sat on one such load. An 8-byte load forwards from any
-            // store holding it; the empty asm (GCC and clang) keeps the
-            // compiler from pairing the loads.
-            for (std::size_t e = 0; e < 6; ++e) {
-                b->stress_end[6 * k + e] = slot.out.stress[static_cast<Eigen::Index>(e)];
-#if defined(__GNUC__) || defined(__clang__)
-                asm volatile("" ::: "memory");
-#endif
-            }
-            if (want_c) b->wave_speed[k] = c;
-            if (want_t) Eigen::Map<RowMat6>(b->tangent + 36 * k) = slot.tangent;
-        };
-        const Context ctx{b, v11, want_t, ids, lengths, rotations};
-        std::int64_t i = 0;
-        try {
-            if constexpr (has_quick_update) {
-                if (!setup) {
-                    // Per chunk: the model's quick pass over the chunk's
-                    // arrays, then update() on the points it left, two at
-                    // a time where the model takes pairs.
-                    std::array<std::uint8_t, Points::kMaxSize> done;
-                    std::array<std::uint32_t, Points::kMaxSize> rest;
-                    for (std::size_t c0 = 0; c0 < n; c0 += Points::kMaxSize) {
-                        const std::size_t m = std::min(n - c0, Points::kMaxSize);
-                        i = static_cast<std::int64_t>(c0);
-                        // The end state starts as the start state.
-                        if (state_size > 0 && b->state_end != b->state_start)
-                            std::copy(b->state_start + state_size * c0,
-                                      b->state_start + state_size * (c0 + m),
-                                      b->state_end + state_size * c0);
-                        std::fill(done.begin(), done.begin() + m, std::uint8_t{0});
-                        const Points pts{m,
-                                         b->time,
-                                         b->dt,
-                                         b->strain_increment + 6 * c0,
-                                         b->stress_start + 6 * c0,
-                                         state_size ? b->state_start + state_size * c0 : nullptr,
-                                         b->density + c0,
-                                         b->stress_end + 6 * c0,
-                                         state_size ? b->state_end + state_size * c0 : nullptr,
-                                         want_c ? b->wave_speed + c0 : nullptr,
-                                         want_t ? b->tangent + 36 * c0 : nullptr,
-                                         done.data()};
-                        self.quick_update(pts);
-                        // The points left, listed without a branch per
-                        // point (every index written, the count advanced
-                        // past the ones left): where elastic and plastic
-                        // points mix, the branch was mispredicted at
-                        // every change.
-                        // A chunk the quick pass finished whole (every
-                        // point of an elastic model) skips the listing: the
-                        // library's search for a zero byte reads the flags
-                        // a vector at a time.
-                        std::size_t n_rest = 0;
-                        if (std::memchr(done.data(), 0, m) != nullptr)
-                            for (std::size_t k = 0; k < m; ++k) {
-                                rest[n_rest] = static_cast<std::uint32_t>(c0 + k);
-                                n_rest += done[k] == 0 ? 1u : 0u;
-                            }
-                        std::size_t j = 0;
-                        if constexpr (has_group_update)
-                            while (j + 1 < n_rest) {
-                                const std::size_t g = std::min(kGroupSize, n_rest - j);
-                                // Uninitialised room for the slots: an
-                                // array of std::optional<Slot> was zeroed
-                                // whole (4.7 kB) for every group.
-                                static_assert(std::is_trivially_destructible_v<Slot>);
-                                alignas(Slot) std::byte room[kGroupSize][sizeof(Slot)];
-                                Slot *slots[kGroupSize];
-                                const PointIn *ins[kGroupSize];
-                                PointOut *outs[kGroupSize];
-                                for (std::size_t k = 0; k < g; ++k) {
-                                    slots[k] =
-                                        ::new (static_cast<void *>(room[k])) Slot(ctx, rest[j + k]);
-                                    ins[k] = &slots[k]->in;
-                                    outs[k] = &slots[k]->out;
-                                }
-                                i = rest[j];
-                                try {
-                                    self.update_group(ins, outs, g);
-                                } catch (...) {
-                                    // As for a pair: each alone, so that
-                                    // the failure names its point.
-                                    for (std::size_t k = 0; k < g; ++k) {
-                                        i = rest[j + k];
-                                        self.update(slots[k]->in, slots[k]->out);
-                                    }
-                                    throw;
-                                }
-                                for (std::size_t k = 0; k < g; ++k)
-                                    commit(*slots[k], rest[j + k]);
-                                j += g;
-                            }
-                        else if constexpr (has_pair_update)
-                            for (; j + 1 < n_rest; j += 2) {
-                                i = rest[j];
-                                Slot slot(ctx, rest[j]), other(ctx, rest[j + 1]);
-                                try {
-                                    self.update_pair(slot.in, slot.out, other.in, other.out);
-                                } catch (...) {
-                                    // The failure is reported with the
-                                    // point it belongs to: each alone (the
-                                    // slots keep their inputs).
-                                    self.update(slot.in, slot.out);
-                                    i = rest[j + 1];
-                                    self.update(other.in, other.out);
-                                    throw;
-                                }
-                                commit(slot, rest[j]);
-                                commit(other, rest[j + 1]);
-                            }
-                        for (; j < n_rest; ++j) {
-                            i = rest[j];
-                            Slot slot(ctx, rest[j]);
-                            self.update(slot.in, slot.out);
-                            commit(slot, rest[j]);
-                        }
-                    }
-                    return TALUS_STATUS_OK;
-                }
-            }
-            for (; i < static_cast<std::int64_t>(n); ++i) {
-                const std::size_t k = static_cast<std::size_t>(i);
-                Slot slot(ctx, k);
-                // From here on the start state may already be overwritten
-                // (aliasing), so `in` holds the only copy of the inputs.
-                if constexpr (has_init_state) {
-                    if (setup)
-                        self.init_state(slot.in, slot.out);
-                    else
-                        self.update(slot.in, slot.out);
-                } else {
-                    self.update(slot.in, slot.out);
-                }
-                commit(slot, k);
-            }
-        } catch (const CutStep &e) {
-            if (err && err->struct_size >= offsetof(talus_error, message)) {
-                err->point_index = i;
-                err->cut_factor = e.factor;
-            }
-            write_message(err, e.what());
-            return TALUS_STATUS_CUT_STEP;
-        } catch (const std::exception &e) {
-            return fail(err, i,
-                        std::string("exception at point ") + std::to_string(i) + ": " + e.what());
-        } catch (...) {
-            return fail(err, i, "unknown exception at point " + std::to_string(i));
-        }
+        batch.ctx = Context{b, v11, want_t, ids, lengths, rotations};
+        batch.want_c = want_c;
         return TALUS_STATUS_OK;
+    }
+
+    // The inputs are screened for the whole batch first, in vector-wide
+    // passes, and a failing point is looked for only when one trips. F is
+    // screened for the models that compute from it; for the others the
+    // strain increment, which the host derives from the same velocity
+    // gradient, already carries any NaN, and reading F would cost 72 bytes
+    // per point. A host that has screened them itself says so
+    // (TALUS_BATCH_INPUTS_FINITE, ABI 1.2): the solver's inputs are its
+    // screened outputs and its kinematics, tested there, and a second
+    // screen of the same values would be a large share of a cheap model's
+    // batch.
+    static std::int32_t screen_inputs(const talus_batch *b, talus_error *err) noexcept {
+        const std::size_t n = b->n_points;
+        if (n == 0 || (b->flags & TALUS_BATCH_INPUTS_FINITE) != 0 || !bad_inputs(b, 0, n))
+            return TALUS_STATUS_OK;
+        for (std::size_t k = 0; k < n; ++k)
+            if (bad_inputs(b, k, 1))
+                return fail(err, static_cast<std::int64_t>(k),
+                            "non-finite input (strain increment, stress, state, density "
+                            "(or not positive), or F for a finite-strain model) at point " +
+                                std::to_string(k));
+        return TALUS_STATUS_OK;
+    }
+    static bool bad_inputs(const talus_batch *b, std::size_t first, std::size_t count) {
+        // Positive and finite (an infinite density passed `> 0` alone and
+        // reached the model, whose wave speed came out zero); the two tests
+        // without a branch, so that the loop vectorises.
+        bool density_ok = true;
+        for (std::size_t k = first; k < first + count; ++k) {
+            const double rho = b->density[k];
+            density_ok &= (rho > 0.0) & (rho < std::numeric_limits<double>::infinity());
+        }
+        return !density_ok || any_nonfinite(b->strain_increment + 6 * first, 6 * count) ||
+               any_nonfinite(b->stress_start + 6 * first, 6 * count) ||
+               (M::info.finite_strain && any_nonfinite(b->F_end + 9 * first, 9 * count)) ||
+               (state_size > 0 &&
+                any_nonfinite(b->state_start + state_size * first, state_size * count));
+    }
+
+    // Point k's outputs into the batch.
+    [[gnu::always_inline]] static void commit(const M &self, const Batch &batch, const Slot &slot,
+                                              std::size_t k) {
+        using RowMat6 = Eigen::Matrix<double, 6, 6, Eigen::RowMajor>;
+        const talus_batch *b = batch.ctx.b;
+        // The outputs are not screened here: the host screens every
+        // plugin's outputs after the batch (NaN, infinities and
+        // non-positive wave speeds), whether built with this SDK or not, so
+        // one screen serves both.
+        double c = 0.0;
+        if (batch.want_c) c = self.wave_speed(slot.in, slot.out);
+        // Element by element: the model has just written out.stress, in
+        // stores whose widths and overlaps its compiler chose. A 16-byte
+        // load needing two of them waits until they reach the cache (no
+        // store forwarding); an 8-byte load forwards from any store holding
+        // it. The empty asm (GCC and clang) keeps the compiler from pairing
+        // the loads.
+        for (std::size_t e = 0; e < 6; ++e) {
+            b->stress_end[6 * k + e] = slot.out.stress[static_cast<Eigen::Index>(e)];
+#if defined(__GNUC__) || defined(__clang__)
+            asm volatile("" ::: "memory");
+#endif
+        }
+        if (batch.want_c) b->wave_speed[k] = c;
+        if (batch.ctx.want_t) Eigen::Map<RowMat6>(b->tangent + 36 * k) = slot.tangent;
+    }
+
+    // The simple path: each point through update() (or init_state()).
+    [[gnu::always_inline]] static void point_by_point(const M &self, const Batch &batch, bool setup,
+                                                      std::int64_t &i) {
+        const std::int64_t n = static_cast<std::int64_t>(batch.ctx.b->n_points);
+        for (; i < n; ++i) {
+            const std::size_t k = static_cast<std::size_t>(i);
+            Slot slot(batch.ctx, k);
+            // From here on the start state may already be overwritten
+            // (aliasing), so `in` holds the only copy of the inputs.
+            if constexpr (has_init_state) {
+                if (setup)
+                    self.init_state(slot.in, slot.out);
+                else
+                    self.update(slot.in, slot.out);
+            } else {
+                (void)setup;
+                self.update(slot.in, slot.out);
+            }
+            commit(self, batch, slot, k);
+        }
+    }
+
+    // The opt-in speed path (quick_update): per chunk, the model's quick
+    // pass over the chunk's arrays, then update() on the points it left,
+    // by groups or two at a time where the model takes them.
+    [[gnu::always_inline]] static void quick_then_rest(const M &self, const Batch &batch,
+                                                       std::int64_t &i) {
+        const talus_batch *b = batch.ctx.b;
+        const std::size_t n = b->n_points;
+        const bool want_c = batch.want_c, want_t = batch.ctx.want_t;
+        std::array<std::uint8_t, Points::kMaxSize> done;
+        std::array<std::uint32_t, Points::kMaxSize> rest;
+        for (std::size_t c0 = 0; c0 < n; c0 += Points::kMaxSize) {
+            const std::size_t m = std::min(n - c0, Points::kMaxSize);
+            i = static_cast<std::int64_t>(c0);
+            // The end state starts as the start state.
+            if (state_size > 0 && b->state_end != b->state_start)
+                std::copy(b->state_start + state_size * c0, b->state_start + state_size * (c0 + m),
+                          b->state_end + state_size * c0);
+            std::fill(done.begin(), done.begin() + m, std::uint8_t{0});
+            const Points pts{m,
+                             b->time,
+                             b->dt,
+                             b->strain_increment + 6 * c0,
+                             b->stress_start + 6 * c0,
+                             state_size ? b->state_start + state_size * c0 : nullptr,
+                             b->density + c0,
+                             b->stress_end + 6 * c0,
+                             state_size ? b->state_end + state_size * c0 : nullptr,
+                             want_c ? b->wave_speed + c0 : nullptr,
+                             want_t ? b->tangent + 36 * c0 : nullptr,
+                             done.data()};
+            self.quick_update(pts);
+            // The points left, listed without a branch per point (every
+            // index written, the count advanced past the ones left): where
+            // elastic and plastic points mix, a branch would be mispredicted
+            // at every change. A chunk the quick pass finished whole (every
+            // point of an elastic model) skips the listing: the library's
+            // search for a zero byte reads the flags a vector at a time.
+            std::size_t n_rest = 0;
+            if (std::memchr(done.data(), 0, m) != nullptr)
+                for (std::size_t k = 0; k < m; ++k) {
+                    rest[n_rest] = static_cast<std::uint32_t>(c0 + k);
+                    n_rest += done[k] == 0 ? 1u : 0u;
+                }
+            update_rest(self, batch, rest.data(), n_rest, i);
+        }
+    }
+
+    // update() on the points a quick pass left: by groups, or pairs, where
+    // the model takes them; a failure of a group or pair is replayed point
+    // by point, so that it names its point.
+    [[gnu::always_inline]] static void update_rest(const M &self, const Batch &batch,
+                                                   const std::uint32_t *rest, std::size_t n_rest,
+                                                   std::int64_t &i) {
+        const Context &ctx = batch.ctx;
+        std::size_t j = 0;
+        if constexpr (has_group_update)
+            while (j + 1 < n_rest) {
+                const std::size_t g = std::min(kGroupSize, n_rest - j);
+                // Uninitialised room for the slots: an array of
+                // std::optional<Slot> would be zeroed whole for every group.
+                static_assert(std::is_trivially_destructible_v<Slot>);
+                alignas(Slot) std::byte room[kGroupSize][sizeof(Slot)];
+                Slot *slots[kGroupSize];
+                const PointIn *ins[kGroupSize];
+                PointOut *outs[kGroupSize];
+                for (std::size_t k = 0; k < g; ++k) {
+                    slots[k] = ::new (static_cast<void *>(room[k])) Slot(ctx, rest[j + k]);
+                    ins[k] = &slots[k]->in;
+                    outs[k] = &slots[k]->out;
+                }
+                i = rest[j];
+                try {
+                    self.update_group(ins, outs, g);
+                } catch (...) {
+                    for (std::size_t k = 0; k < g; ++k) {
+                        i = rest[j + k];
+                        self.update(slots[k]->in, slots[k]->out);
+                    }
+                    throw;
+                }
+                for (std::size_t k = 0; k < g; ++k)
+                    commit(self, batch, *slots[k], rest[j + k]);
+                j += g;
+            }
+        else if constexpr (has_pair_update)
+            for (; j + 1 < n_rest; j += 2) {
+                i = rest[j];
+                Slot slot(ctx, rest[j]), other(ctx, rest[j + 1]);
+                try {
+                    self.update_pair(slot.in, slot.out, other.in, other.out);
+                } catch (...) {
+                    self.update(slot.in, slot.out);
+                    i = rest[j + 1];
+                    self.update(other.in, other.out);
+                    throw;
+                }
+                commit(self, batch, slot, rest[j]);
+                commit(self, batch, other, rest[j + 1]);
+            }
+        for (; j < n_rest; ++j) {
+            i = rest[j];
+            Slot slot(ctx, rest[j]);
+            self.update(slot.in, slot.out);
+            commit(self, batch, slot, rest[j]);
+        }
     }
 
     static constexpr talus_model model = {

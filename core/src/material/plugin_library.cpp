@@ -1,0 +1,302 @@
+// A plugin library: opened once per file, its entry called, its
+// descriptors checked and kept (PluginLibrary), its file's digest, and the
+// host's log callback.
+#include <talus/material/plugin_loader.hpp>
+
+#include "descriptor_checker.hpp"
+#include "plugin_errors.hpp"
+
+#include <talus/material/crash_report.hpp>
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <dlfcn.h>
+#include <openssl/evp.h>
+
+#include <algorithm>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+
+#ifndef TALUS_VERSION_STRING
+#define TALUS_VERSION_STRING "0.0.0"
+#endif
+
+namespace fs = std::filesystem;
+
+namespace talus {
+
+const char *host_name() { return "talus " TALUS_VERSION_STRING; }
+
+namespace {
+
+// The SDK's build string in the library file (TALUS_SDK_BUILD_INFO).
+PluginLibrary::Build read_build_info(const fs::path &file) {
+    PluginLibrary::Build b;
+    std::ifstream in(file, std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string key = "TALUS_BUILD_INFO optimised=";
+    const auto at = bytes.find(key);
+    if (at == std::string::npos || at + key.size() + 11 > bytes.size()) return b;
+    const std::string rest = bytes.substr(at + key.size(), 11); // "1 asserts=0"
+    if (rest.compare(1, 9, " asserts=") != 0) return b;
+    b.known = true;
+    b.optimised = rest[0] == '1';
+    b.asserts = rest[10] == '1';
+    return b;
+}
+
+} // namespace
+
+std::string sha256_file(const fs::path &file) {
+    std::ifstream in(file, std::ios::binary);
+    if (!in) return {};
+    std::unique_ptr<EVP_MD_CTX, decltype(&EVP_MD_CTX_free)> ctx(EVP_MD_CTX_new(), &EVP_MD_CTX_free);
+    if (!ctx || EVP_DigestInit_ex(ctx.get(), EVP_sha256(), nullptr) != 1) return {};
+    std::vector<char> buf(1 << 16);
+    while (in) {
+        in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
+        const auto got = static_cast<std::size_t>(in.gcount());
+        if (got > 0 && EVP_DigestUpdate(ctx.get(), buf.data(), got) != 1) return {};
+    }
+    if (in.bad()) return {};
+    unsigned char md[EVP_MAX_MD_SIZE];
+    unsigned int len = 0;
+    if (EVP_DigestFinal_ex(ctx.get(), md, &len) != 1) return {};
+    std::string hex;
+    for (unsigned int i = 0; i < len; ++i)
+        fmt::format_to(std::back_inserter(hex), "{:02x}", md[i]);
+    return hex;
+}
+
+namespace {
+
+std::mutex g_log_sink_mutex;
+PluginLogSink g_log_sink;
+
+} // namespace
+
+PluginLogSink set_plugin_log_sink(PluginLogSink sink) {
+    const std::lock_guard lock(g_log_sink_mutex);
+    std::swap(g_log_sink, sink);
+    return sink;
+}
+
+void PluginLibrary::host_log(void *context, std::int32_t level, const char *message) {
+    // Called by plugin code, possibly from several threads inside update:
+    // nothing may escape back across the C ABI.
+    try {
+        auto *lib = static_cast<PluginLibrary *>(context);
+        if (!lib) return;
+        std::size_t n = 0;
+        {
+            const std::lock_guard lock(lib->log_mutex_);
+            n = ++lib->log_count_;
+        }
+        if (n > kPluginLogShown) return;
+        const std::string text = message ? std::string(message, strnlen(message, 4096)) : "";
+        std::string line =
+            fmt::format("{}: plugin {}: {}", level == TALUS_LOG_WARNING ? "warning" : "note",
+                        lib->name_.empty() ? lib->path_.string() : lib->name_, text);
+        if (n == kPluginLogShown)
+            line += fmt::format(" (further messages of this plugin are counted, not shown)");
+        const std::lock_guard lock(g_log_sink_mutex);
+        if (g_log_sink)
+            g_log_sink(line);
+        else
+            std::fprintf(stderr, "%s\n", line.c_str());
+    } catch (...) {
+    }
+}
+
+std::size_t PluginLibrary::log_messages() const {
+    const std::lock_guard lock(log_mutex_);
+    return log_count_;
+}
+
+std::size_t PluginLibrary::log_suppressed() const {
+    const std::size_t n = log_messages();
+    return n > kPluginLogShown ? n - kPluginLogShown : 0;
+}
+
+const void *PluginLibrary::extension(const char *id) const {
+    if (!get_extension_ || !id) return nullptr;
+    try {
+        return get_extension_(id);
+    } catch (...) {
+        return nullptr;
+    }
+}
+
+std::string PluginLibrary::build_text() const {
+    if (!build_.known) return "unknown (not built with the Talus SDK's TALUS_MATERIAL_LIBRARY)";
+    return fmt::format("{}, assertions {}{}",
+                       build_.optimised ? "optimised" : "NOT optimised (-O0)",
+                       build_.asserts ? "on" : "off",
+                       build_.optimised ? ""
+                                        : ": expect it to run about ten times slower; rebuild it "
+                                          "with CMAKE_BUILD_TYPE=Release");
+}
+
+std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
+    std::error_code ec;
+    if (!fs::exists(file, ec))
+        throw Error(fmt::format("{}: plugin library not found", file.string()));
+    // RTLD_NOW: an unresolved symbol is reported here rather than mid-run.
+    // RTLD_LOCAL: two plugins never see each other's symbols.
+    void *handle = dlopen(file.c_str(), RTLD_NOW | RTLD_LOCAL);
+    if (!handle) {
+        const char *why = dlerror();
+        throw Error(fmt::format("{}: not a loadable shared library: {}", file.string(),
+                                why ? why : "unknown dlopen error"));
+    }
+    std::shared_ptr<PluginLibrary> lib(new PluginLibrary());
+    lib->handle_ = handle;
+    lib->path_ = file;
+    lib->build_ = read_build_info(file);
+    lib->hash_ = sha256_file(file);
+
+    dlerror();
+    void *sym = dlsym(handle, TALUS_MATERIAL_ENTRY_SYMBOL);
+    if (!sym)
+        throw Error(fmt::format(
+            "{}: no exported symbol '{}': this is not a Talus material plugin (a plugin defines it "
+            "with TALUS_MATERIAL_LIBRARY, or by hand with TALUS_PLUGIN_EXPORT)",
+            file.string(), TALUS_MATERIAL_ENTRY_SYMBOL));
+    auto entry = reinterpret_cast<talus_material_entry_fn>(sym);
+
+    talus_host_info host{};
+    host.struct_size = sizeof(host);
+    host.abi_major = TALUS_ABI_VERSION_MAJOR;
+    host.abi_minor = TALUS_ABI_VERSION_MINOR;
+    host.host_name = host_name();
+    host.log = &PluginLibrary::host_log;
+    host.log_context = lib.get();
+    host.get_extension = [](const char *) -> const void * { return nullptr; };
+    const talus_library *desc = nullptr;
+    talus_error err = fresh_error();
+    std::int32_t status = TALUS_STATUS_FAILED;
+    try {
+        const crash::PluginCall call("(its entry point)", file.c_str());
+        status = entry(&host, &desc, &err);
+    } catch (...) {
+        throw Error(
+            fmt::format("{}: the entry point threw an exception across the C ABI", file.string()));
+    }
+    if (status != TALUS_STATUS_OK)
+        throw Error(fmt::format("{}: the plugin refused to load (host speaks ABI {}.{}): {}",
+                                file.string(), TALUS_ABI_VERSION_MAJOR, TALUS_ABI_VERSION_MINOR,
+                                read_message(err)));
+    lib->read_descriptor(desc);
+    return lib;
+}
+
+std::shared_ptr<PluginLibrary> PluginLibrary::from_descriptor(const talus_library *desc,
+                                                              const fs::path &label) {
+    std::shared_ptr<PluginLibrary> lib(new PluginLibrary());
+    lib->path_ = label;
+    lib->read_descriptor(desc);
+    return lib;
+}
+
+void PluginLibrary::read_descriptor(const talus_library *desc) {
+    const DescriptorChecker chk{path_};
+    if (!desc) chk.bad("library", "the entry point returned OK but no library descriptor");
+    // Read the version first: a library of another major may lay out even
+    // the library structure differently, so nothing else is trusted before.
+    if (desc->struct_size < offsetof(talus_library, n_models))
+        chk.bad("library", fmt::format("struct_size {} is too small", desc->struct_size));
+    if (desc->abi_major != TALUS_ABI_VERSION_MAJOR)
+        throw Error(fmt::format("{}: ABI major version mismatch: the plugin was built for Talus "
+                                "material ABI {}.{}, this host speaks ABI {}.{}; rebuild the "
+                                "plugin against this host's SDK",
+                                path_.string(), desc->abi_major, desc->abi_minor,
+                                TALUS_ABI_VERSION_MAJOR, TALUS_ABI_VERSION_MINOR));
+    chk.need_size(desc->struct_size, offsetof(talus_library, get_extension), "library");
+    chk.need_string(desc->name, "library", "name");
+    chk.need_string(desc->version, "library", "version");
+    // The name prefixes the qualified model ids (library/model).
+    if (!*desc->name || std::strpbrk(desc->name, "/ \t\n"))
+        chk.bad("library", fmt::format("field 'name' ('{}') must be non-empty, without '/' or "
+                                       "spaces: it prefixes the qualified model ids",
+                                       desc->name));
+    if (TALUS_HAS_FIELD(talus_library, desc, get_extension)) get_extension_ = desc->get_extension;
+    if (desc->n_models == 0)
+        chk.bad("library", "field 'n_models' is 0: the library offers no model");
+    if (!desc->models) chk.bad("library", "field 'models' is null");
+    name_ = desc->name;
+    version_ = desc->version;
+    abi_major_ = desc->abi_major;
+    abi_minor_ = desc->abi_minor;
+
+    std::set<std::string> ids;
+    for (std::uint32_t m = 0; m < desc->n_models; ++m) {
+        const talus_model *md = desc->models[m];
+        std::string where = fmt::format("model #{}", m);
+        if (!md) chk.bad(where, "null pointer in the models array");
+        chk.need_size(md->struct_size, offsetof(talus_model, create_ex), where);
+        if (!DescriptorChecker::snake_case(md->id))
+            chk.bad(where, fmt::format("field 'id' must be lower_snake_case, got '{}'",
+                                       md->id ? md->id : "(null)"));
+        where = fmt::format("model '{}'", md->id);
+        if (!ids.insert(md->id).second) chk.bad(where, "the id appears twice in this library");
+        chk.need_string(md->name, where, "name");
+        chk.need_string(md->version, where, "version");
+        chk.need_string(md->doc, where, "doc");
+        if (!md->create) chk.bad(where, "field 'create' is null");
+        if (!md->destroy) chk.bad(where, "field 'destroy' is null");
+        if (!md->update) chk.bad(where, "field 'update' is null");
+        constexpr std::uint32_t known = TALUS_MODEL_FINITE_STRAIN | TALUS_MODEL_TANGENT |
+                                        TALUS_MODEL_NOT_REENTRANT | TALUS_MODEL_INSTANCE_STATE |
+                                        TALUS_MODEL_WANTS_ROTATION;
+        if (md->flags & ~known)
+            chk.bad(where, fmt::format("field 'flags': unknown bits 0x{:x}", md->flags & ~known));
+        if (md->n_params > 0 && !md->params) chk.bad(where, "field 'params' is null");
+        if (md->n_state > 0 && !md->state) chk.bad(where, "field 'state' is null");
+
+        Model model;
+        model.raw_ = md;
+        model.library_ = this;
+        if (TALUS_HAS_FIELD(talus_model, md, init_state)) {
+            model.create_ex_ = md->create_ex;
+            model.instance_state_ = md->instance_state;
+            model.init_state_ = md->init_state;
+        }
+        constexpr std::uint32_t v11 =
+            TALUS_MODEL_NOT_REENTRANT | TALUS_MODEL_INSTANCE_STATE | TALUS_MODEL_WANTS_ROTATION;
+        if ((md->flags & v11) && !TALUS_HAS_FIELD(talus_model, md, init_state))
+            chk.bad(where, fmt::format("flags 0x{:x} are ABI 1.1 but the descriptor is a 1.0 one "
+                                       "(struct_size {})",
+                                       md->flags & v11, md->struct_size));
+        if ((md->flags & TALUS_MODEL_INSTANCE_STATE) && !model.instance_state_)
+            chk.bad(where, "TALUS_MODEL_INSTANCE_STATE is set but 'instance_state' is null");
+        model.id_ = md->id;
+        model.name_ = md->name;
+        model.version_ = md->version;
+        model.doc_ = md->doc;
+        std::set<std::string> keys;
+        for (std::uint32_t i = 0; i < md->n_params; ++i) {
+            const std::string pw = fmt::format("{} parameter #{}", where, i);
+            ParamInfo p = chk.param(md->params[i], pw, model.create_ex_ != nullptr);
+            if (!keys.insert(p.key).second)
+                chk.bad(pw, fmt::format("key '{}' appears twice", p.key));
+            model.params_.push_back(std::move(p));
+        }
+        // An instance-state model's own table is ignored (material_abi.h).
+        if (!model.instance_state()) model.state_ = chk.layout(md->state, md->n_state, where);
+        models_.push_back(std::move(model));
+    }
+}
+
+PluginLibrary::~PluginLibrary() {
+    if (handle_) dlclose(handle_);
+}
+
+const Model *PluginLibrary::find(const std::string &id) const {
+    for (const Model &m : models_)
+        if (m.id() == id) return &m;
+    return nullptr;
+}
+
+} // namespace talus
