@@ -12,8 +12,19 @@
 
 #include <array>
 #include <cstddef>
+#include <ostream>
 #include <random>
 #include <vector>
+
+namespace talus {
+
+// The shape's name in the tests' parameter lists.
+inline void PrintTo(ShapeKind k, std::ostream *os) {
+    constexpr const char *names[] = {"linear", "gimp", "bspline2", "bspline3"};
+    *os << names[static_cast<int>(k)];
+}
+
+} // namespace talus
 
 namespace talus::test {
 

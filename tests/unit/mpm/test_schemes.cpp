@@ -15,6 +15,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <ostream>
 #include <string>
 
 namespace {
@@ -23,6 +24,8 @@ struct Scheme {
     std::string solver; // the solver: block's keys
     int kind;           // the displacement over g dt^2: n(n+1)/2, n(n-1)/2, n^2/2
 };
+
+void PrintTo(const Scheme &s, std::ostream *os) { *os << "{" << s.solver << "}"; }
 
 class Schemes : public ::testing::TestWithParam<std::tuple<int, Scheme>> {};
 
