@@ -73,12 +73,7 @@ template <int D, bool Rotate>
     if constexpr (D == 2) std::memcpy(out.F_end + 9 * k, F1, sizeof F1);
     out.rho[k] = s.rho0 / J;
     double *de = out.de + 6 * k;
-    de[0] = dt * L[0];
-    de[1] = dt * L[4];
-    de[2] = dt * L[8];
-    de[3] = dt * (L[1] + L[3]);
-    de[4] = dt * (L[5] + L[7]);
-    de[5] = dt * (L[2] + L[6]);
+    strain_increment(L, dt, de);
     if (divv) divv[k] = L[0] + L[4] + L[8];
     double *sig = out.stress_start + 6 * k;
     std::memcpy(sig, &s.stress[6 * p], 6 * sizeof(double));
@@ -90,15 +85,6 @@ template <int D, bool Rotate>
         nonfinite += (de[c] - de[c]) + (sig[c] - sig[c]);
     if (!(nonfinite == 0.0)) *out.finite = false;
     return true;
-}
-
-// stress_work (kinematics.hpp) lane by lane, its sum in its order: the
-// same bits as the scalar code in every lane. (Into w, not returned: a
-// vector returned by value changes the calling convention with the target.)
-template <class V>
-[[gnu::always_inline]] inline void stress_work_lanes(const V (&sig)[6], const V (&de)[6], V &w) {
-    w = sig[0] * de[0] + sig[1] * de[1] + sig[2] * de[2] + sig[3] * de[3] + sig[4] * de[4] +
-        sig[5] * de[5];
 }
 
 // The block in packs of N points, the rest point by point. A pack with an
@@ -171,11 +157,11 @@ template <int N, int D, bool Rotate>
             store_points<N>(&s.F[4 * p], f);
             store_points<N>(out.F_end + 9 * k, F1);
         }
-        const V de[6] = {dt * Lv[0],           dt * Lv[4],           dt * Lv[8],
-                         dt * (Lv[1] + Lv[3]), dt * (Lv[5] + Lv[7]), dt * (Lv[2] + Lv[6])};
+        V de[6];
+        strain_increment(Lv, dt, de);
         store_points<N>(out.de + 6 * k, de);
         V w;
-        stress_work_lanes(sig, de, w);
+        stress_work(sig, de, w);
         std::memcpy(out.work_start + k, &w, sizeof w);
         if (divv) {
             const V dv = Lv[0] + Lv[4] + Lv[8];
@@ -239,7 +225,7 @@ template <int N>
         load_vector<N>(work_start + k, w0);
         load_vector<N>(&s.work[p], work);
         V w1;
-        stress_work_lanes(sig, d, w1);
+        stress_work(sig, d, w1);
         work += 0.5 * J * vol0 * w0;
         work += 0.5 * J * vol0 * w1;
         store_vector<N>(&s.work[p], work);

@@ -16,9 +16,28 @@
 
 namespace talus {
 
+// The strain increment d_eps = dt sym(L) (eq. 42) in Voigt order with
+// engineering shears (the ABI's), and the stress's work on it, sigma :
+// d_eps, its sum in this order: written once for a double or a vector pack
+// of them (T), one point a lane, so that the packs give the scalar bits.
+template <class T>
+[[gnu::always_inline]] inline void strain_increment(const T *L, double dt, T *de) {
+    de[0] = dt * L[0];
+    de[1] = dt * L[4];
+    de[2] = dt * L[8];
+    de[3] = dt * (L[1] + L[3]);
+    de[4] = dt * (L[5] + L[7]);
+    de[5] = dt * (L[2] + L[6]);
+}
+template <class T>
+[[gnu::always_inline]] inline void stress_work(const T *sig, const T *de, T &w) {
+    w = sig[0] * de[0] + sig[1] * de[1] + sig[2] * de[2] + sig[3] * de[3] + sig[4] * de[4] +
+        sig[5] * de[5];
+}
 inline double stress_work(const double *sig, const double *de) {
-    return sig[0] * de[0] + sig[1] * de[1] + sig[2] * de[2] + sig[3] * de[3] + sig[4] * de[4] +
-           sig[5] * de[5];
+    double w;
+    stress_work(sig, de, w);
+    return w;
 }
 
 // A particle whose J fell to zero or below: the run cannot go on.
