@@ -4,8 +4,10 @@
 // (eqs. 39-42) and Hooke's law: F = (I + dt L) F0, J = det F,
 // rho = rho0 / J, d_eps = dt sym(L), and from a zero start stress
 // sigma = lambda tr(d_eps) I + 2 G d_eps (plane strain: d_eps_zz = 0, so
-// sigma_zz = lambda tr(d_eps)). A few roundings each: 1e-12 of the values'
-// size bounds them.
+// sigma_zz = lambda tr(d_eps)). Each is a few roundings of values of
+// order 1 (F, J: 1e-15 and 1e-14, a handful of ulps) or of E dt (the
+// stress: 1e-12 of it, the plugin's Hooke sums in its own order), and of
+// the wave speed (1e-12 of it: a division and a root).
 #include "phase_fixture.hpp"
 #include "solver_helpers.hpp"
 
