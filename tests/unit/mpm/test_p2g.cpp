@@ -84,6 +84,7 @@ TEST_P(P2g, KeepsMassMomentumTheirMomentsAndTheForceBalance) {
     const double tol = 1e-12;
     EXPECT_NEAR(s.m, m, tol * s.scale_m);
     for (int a = 0; a < D; ++a) {
+        // The first moment's terms are m_i x_i, |x_i| < 2 m in this domain.
         EXPECT_NEAR(s.mx[a], mx[a], tol * s.scale_m * 2.0) << "axis " << a;
         EXPECT_NEAR(s.p[a], p[a], tol * s.scale_p) << "axis " << a;
         // Gravity alone: the internal forces cancel.
