@@ -4,8 +4,9 @@
 // face's conditions hold as they are defined;
 // viscous damping takes alpha m v off the force first, so that
 // v~ = v (1 - alpha dt) + dt f / m. The phase computes each with a few
-// roundings in its own order: 1e-14 of the values' size bounds the
-// difference.
+// roundings in its own order: 1e-14 of the value's size plus 1e-14
+// (for values near zero, whose roundings come from terms of order one)
+// bounds the difference.
 #include "phase_fixture.hpp"
 
 #include "method/boundary.hpp"

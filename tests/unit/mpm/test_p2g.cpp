@@ -8,8 +8,11 @@
 // internal forces sum to zero and their first moment is the particles'
 // volume-weighted stress: sum_i x_i (x) f_int,i = -sum_p V_p sigma_p.
 // Each is a sum of a few thousand products in another order than the
-// phase's, so 1e-12 of the sum of the terms' magnitudes bounds its
-// rounding with a wide margin.
+// phase's; its scale is the sum of the node totals' magnitudes (for the
+// forces smaller than the terms', which cancel in part at a node). The
+// roundings of the two orders differ by some 1e-15 of that scale; a wrong
+// sum (a node missed, a sign, a weight) by order one of it: 1e-12 lies
+// between, far from both.
 #include "phase_fixture.hpp"
 
 #include "method/p2g.hpp"

@@ -13,10 +13,17 @@ namespace talus {
 
 // A vector of N doubles (V), of N 64-bit integers (I), and V at a double's
 // alignment (U: the type of a vector load or store at any double).
-// Explicit per N: the compiler does not take a dependent vector_size in a
+// N = 1 serves the last few points of a block in the same code as its
+// packs. Explicit per N: the compiler does not take a dependent vector_size in a
 // template as a vector.
 template <int N>
 struct Lanes;
+template <>
+struct Lanes<1> {
+    typedef double V __attribute__((vector_size(sizeof(double))));
+    typedef long long I __attribute__((vector_size(sizeof(long long))));
+    typedef double U __attribute__((vector_size(sizeof(double)), aligned(8), may_alias));
+};
 template <>
 struct Lanes<2> {
     typedef double V __attribute__((vector_size(2 * sizeof(double))));

@@ -27,15 +27,19 @@ bool Domain::contains(const ParticleSet &s, std::size_t p, int dim) const {
 
 using Partial = StepEndBlocks::Partial;
 
-void Partial::saw(std::size_t p, std::uint32_t cell, std::uint32_t far) {
-    if (last != kNone && p == last + 1) {
-        if (Ordering::far_below(cell, last_cell, far)) ++descents;
-    } else if (first == kNone) {
-        first = p;
-        first_cell = cell;
+void Partial::saw(std::size_t from, const std::uint32_t *cell, std::size_t k, std::uint32_t far) {
+    if (k == 0) return;
+    long down = 0;
+    if (last != kNone && from == last + 1 && Ordering::far_below(cell[0], last_cell, far)) ++down;
+    for (std::size_t j = 1; j < k; ++j)
+        down += Ordering::far_below(cell[j], cell[j - 1], far) ? 1 : 0;
+    descents += down;
+    if (first == kNone) {
+        first = from;
+        first_cell = cell[0];
     }
-    last = p;
-    last_cell = cell;
+    last = from + k - 1;
+    last_cell = cell[k - 1];
 }
 
 void Partial::merge(const Partial &o, std::uint32_t far) {
@@ -82,104 +86,30 @@ void StepEndBlocks::begin(std::vector<ParticleSet> &sets, const GridGeometry &ge
 
 namespace {
 
-// The body of StepEndBlocks::block for one dimension and position step:
-// the axes unrolled, the face tests without branches, and every bound in
-// a local (the stores to the particle arrays would otherwise make the
-// compiler reload the members they might alias).
-template <int D, bool Add>
-void end_block(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &geo,
-               const Domain &domain, const Ordering &order, std::size_t begin, std::size_t count,
-               Partial &r) {
-    double lo[D], hi[D], origin[D];
-    bool closed_lo[D], closed_hi[D];
-    int cells[D];
-    double *x[D];
-    const double *dx[D], *v[D];
-    for (int d = 0; d < D; ++d) {
-        const std::size_t dd = static_cast<std::size_t>(d);
-        lo[d] = domain.lo[dd];
-        hi[d] = domain.hi[dd];
-        closed_lo[d] = domain.closed_lo[dd];
-        closed_hi[d] = domain.closed_hi[dd];
-        origin[d] = geo.origin[dd];
-        cells[d] = geo.cells[dd];
-        x[d] = s.x[dd].data();
-        dx[d] = Add ? s.dx[dd].data() : nullptr;
-        v[d] = s.v[dd].data();
-    }
-    const double inv_h = geo.inv_h;
-    const int axis = order.axis();
-    const double *c = s.c.data();
-    double speed = r.speed, depth = r.depth;
-    long outside = 0, held = 0, moved = 0;
-    int cell_lo[D], cell_hi[D];
-    for (int d = 0; d < D; ++d) {
-        cell_lo[d] = r.cell_lo[static_cast<std::size_t>(d)];
-        cell_hi[d] = r.cell_hi[static_cast<std::size_t>(d)];
-    }
-    for (std::size_t p = begin; p < begin + count; ++p) {
-        // The grid's normal velocity at a closed face is zero (clamped
-        // basis), so the motion from the grid cannot carry a particle
-        // through it by more than the round-off of the position sum (or a
-        // step above the stability limit); what does is put back onto the
-        // face (and counted), so that "outside" means through a free face.
-        bool in = true;
-        double v2 = 0.0;
-        std::size_t ci = 0, stride = 1;
-        int sl = 0;
-        for (int d = 0; d < D; ++d) {
-            double xd = Add ? x[d][p] + dx[d][p] : x[d][p];
-            const bool below = closed_lo[d] && xd < lo[d];
-            const bool above = closed_hi[d] && xd > hi[d];
-            depth = std::max(depth, below ? lo[d] - xd : above ? xd - hi[d] : 0.0);
-            held += below || above ? 1 : 0;
-            xd = below ? lo[d] : above ? hi[d] : xd;
-            x[d][p] = xd;
-            in = in && xd >= lo[d] && xd <= hi[d];
-            v2 += v[d][p] * v[d][p];
-            // The cell, and from it the slab (GridGeometry::cell).
-            const int cd = GridGeometry::clamped_cell((xd - origin[d]) * inv_h, cells[d]);
-            cell_lo[d] = std::min(cell_lo[d], cd);
-            cell_hi[d] = std::max(cell_hi[d], cd);
-            ci += static_cast<std::size_t>(cd) * stride;
-            stride *= static_cast<std::size_t>(cells[d]);
-            if (d == axis) sl = order.slab_of_cell(cd);
-        }
-        outside += in ? 0 : 1;
-        speed = std::max(speed, c[p] + std::sqrt(v2));
-        moved += sl != mark.slab[p] ? 1 : 0;
-        mark.slab[p] = sl;
-        mark.cell[p] = static_cast<std::uint32_t>(ci);
-        // Particles far below their predecessor in the cell order.
-        r.saw(p, static_cast<std::uint32_t>(ci), order.far());
-    }
-    r.speed = speed;
-    r.depth = depth;
-    for (int d = 0; d < D; ++d) {
-        r.cell_lo[static_cast<std::size_t>(d)] = cell_lo[d];
-        r.cell_hi[static_cast<std::size_t>(d)] = cell_hi[d];
-    }
-    r.outside += outside;
-    r.held += held;
-    r.moved += moved;
-}
-
-// The same for the block's first packs of N points, one point a vector
-// lane (N = 2, 4, 8 on the generic, AVX2, AVX-512 builds); returns how many
-// points it did (a multiple of N), leaving r as the scalar loop would have
-// left it there, so that end_block goes on from that point. Point by point
-// the pass is about 35 scalar operations with compares and conversions to
-// int, for every point at every step
-// (bench/results/2026-11-25-lane-tests-epyc-zen4.md). The results are those
-// of end_block exactly: every lane does its arithmetic (the sums of v^2 in
-// the same order, this file compiled without fused multiply-adds), and the
-// rest are maxima, counts and integers. The cells are computed in doubles
-// (exact: whole numbers below 2^53) and converted to int32 at the end, which
-// every target has in vector form (the 64-bit conversions need AVX-512DQ).
+// The step's end for the points of a block from `begin`, in packs of N,
+// one point a vector lane (N = 2, 4, 8 on the generic, AVX2, AVX-512
+// builds; N = 1 for the block's last few): each point's position moved
+// (or x + dx), put back onto a closed face it went through, its cell and
+// slab marked, and the block's maxima and counts gathered in r. Returns how
+// many points it did (a multiple of N), r continuing from where it was.
+//
+// The grid's normal velocity at a closed face is zero (clamped basis), so
+// the motion from the grid cannot carry a particle through it by more than
+// the round-off of the position sum (or a step above the stability limit);
+// what does is put back onto the face (and counted), so that "outside"
+// means through a free face.
+//
+// Written once for every width, the results do not depend on N: every lane
+// does its arithmetic (the sums of v^2 in the same order, this file
+// compiled without fused multiply-adds), and the rest are maxima, counts
+// and integers. The cells are computed in doubles (exact: whole numbers
+// below 2^53) and converted to int32 at the end, which every target has in
+// vector form (the 64-bit conversions need AVX-512DQ).
 template <int N, int D, bool Add>
-[[gnu::always_inline]] inline std::size_t
-end_packs(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &geo, const Domain &domain,
-          const Ordering &order, std::size_t begin, std::size_t count, Partial &r) {
+[[gnu::always_inline]] inline std::size_t end_points(ParticleSet &s, const Ordering::Marks mark,
+                                                     const GridGeometry &geo, const Domain &domain,
+                                                     const Ordering &order, std::size_t begin,
+                                                     std::size_t count, Partial &r) {
     using V = typename Lanes<N>::V;
     typedef std::int32_t I32 __attribute__((vector_size(N * sizeof(std::int32_t))));
     if (count < N) return 0;
@@ -313,17 +243,8 @@ end_packs(ParticleSet &s, const Ordering::Marks mark, const GridGeometry &geo, c
         r.held += static_cast<long>(held[i]);
         r.moved += static_cast<long>(moved[i]);
     }
-    // Partial::saw over the points done, from the cells just written.
-    const std::uint32_t *cell = mark.cell + begin;
-    const std::uint32_t far = order.far();
-    long descents = 0;
-    for (std::size_t j = 1; j < k; ++j)
-        descents += Ordering::far_below(cell[j], cell[j - 1], far) ? 1 : 0;
-    r.descents += descents;
-    r.first = begin;
-    r.first_cell = cell[0];
-    r.last = begin + k - 1;
-    r.last_cell = cell[k - 1];
+    // Descents in the cell order, from the cells just written.
+    r.saw(begin, mark.cell + begin, k, order.far());
     return k;
 }
 
@@ -332,8 +253,8 @@ template <int N, int D, bool Add>
                                                    const GridGeometry &geo, const Domain &domain,
                                                    const Ordering &order, std::size_t begin,
                                                    std::size_t count, Partial &r) {
-    const std::size_t k = end_packs<N, D, Add>(s, mark, geo, domain, order, begin, count, r);
-    end_block<D, Add>(s, mark, geo, domain, order, begin + k, count - k, r);
+    const std::size_t k = end_points<N, D, Add>(s, mark, geo, domain, order, begin, count, r);
+    end_points<1, D, Add>(s, mark, geo, domain, order, begin + k, count - k, r);
 }
 
 // One version per instruction set (isa.hpp), with its vector width.

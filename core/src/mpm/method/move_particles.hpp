@@ -66,7 +66,8 @@ class StepEndBlocks {
         std::uint32_t first_cell = 0, last_cell = 0;
         std::array<int, 3> cell_lo{StepEnd::kNoCell, StepEnd::kNoCell, StepEnd::kNoCell},
             cell_hi{-1, -1, -1};
-        void saw(std::size_t p, std::uint32_t cell, std::uint32_t far);
+        // Points from..from+k-1 (their cells cell[0..k)) were marked.
+        void saw(std::size_t from, const std::uint32_t *cell, std::size_t k, std::uint32_t far);
         void merge(const Partial &o, std::uint32_t far);
     };
 

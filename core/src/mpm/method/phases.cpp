@@ -101,8 +101,10 @@ void Simulation::Impl::g2p_velocity_and_update(double t, double dt) {
                     materials.block_size(), isa);
     const Increment inc{t, dt, step + 1, nullptr, nullptr};
     UpdateThenEnd hand_off{materials, step_ends, sets, inc, failures};
-    // The pass's time split into G2P's, the material update's and the step
-    // end's, as the split pipeline would report them.
+    // G2P gives each block it finishes to hand_off: first() runs the
+    // material update (MaterialUpdate::block, material_update.cpp), second()
+    // the step's end (move_particles.cpp). The pass's time split into G2P's, the material update's
+    // and the step end's, as the split pipeline would report them.
     SplitPassClock clock(hand_off);
     clock.run(
         [&](GradientBlocks &blocks) {
