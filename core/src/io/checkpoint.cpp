@@ -3,8 +3,11 @@
 // state; /scenario (the text as read); /plugins/<k> (one group per
 // material, attributes only); /sets/<k>/<column> (n x stride arrays of the
 // particle columns, named as ParticleSet names them) and /sets/<k>/slab_of;
-// /output (frame times, probe particles). Every HDF5 call is checked.
+// /output (frame times, probe particles). Every HDF5 call is checked, and
+// the file's bytes carry digests in its user block (checkpoint_digests.hpp).
 #include <talus/io/checkpoint.hpp>
+
+#include "checkpoint_digests.hpp"
 
 #include <talus/error.hpp>
 #include <talus/material/plugin_loader.hpp>
@@ -34,7 +37,9 @@ constexpr const char *kFormat = "talus checkpoint";
 // rank's cell box in each). A format-1 file is one rank's and reads as one.
 // 3: in plane strain a particle's F is its in-plane block, 4 values
 // (ParticleSet::F); the 9 of formats 1 and 2 still read.
-constexpr long kFormatVersion = 3;
+// 4: digests of the file's bytes in its user block, checked before HDF5
+// reads the file; formats 1 to 3 read without.
+constexpr long kFormatVersion = 4;
 
 // An HDF5 handle, closed by its own close function.
 class Handle {
@@ -419,8 +424,20 @@ std::vector<std::string> identity_differences(const Checkpoint &c,
 void write_checkpoint(const fs::path &file, const Checkpoint &c) {
     const fs::path tmp = file.parent_path() / fmt::format(".{}.tmp", file.filename().string());
     const H5 h5(file);
+    // The user block holds a line per array (docs/restart.md).
+    std::size_t arrays = 8, names = 64;
+    for (std::size_t k = 0; k < c.state.sets.size(); ++k) {
+        arrays += c.state.sets[k].columns.size() + 1;
+        for (const Snapshot::Column &col : c.state.sets[k].columns)
+            names += col.name.size() + 24;
+        names += 32;
+    }
+    const std::size_t userblock = checkpoint_digests::userblock_size(arrays, names);
+    std::vector<checkpoint_digests::Range> stored;
     {
-        Handle f(h5.check(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT),
+        Handle fcpl(h5.check(H5Pcreate(H5P_FILE_CREATE), "file creation properties"), H5Pclose);
+        h5.check(H5Pset_userblock(fcpl.get(), userblock), "setting the user block", "");
+        Handle f(h5.check(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, fcpl.get(), H5P_DEFAULT),
                           "cannot create the checkpoint's temporary file " + tmp.string()),
                  H5Fclose);
         try {
@@ -469,6 +486,11 @@ void write_checkpoint(const fs::path &file, const Checkpoint &c) {
                            o.probe_particles.size(), 1);
             }
             write_state(h5, root, c.state);
+            try {
+                stored = checkpoint_digests::arrays(root);
+            } catch (const Error &e) {
+                h5.fail(e.what());
+            }
             if (H5Fflush(root, H5F_SCOPE_GLOBAL) < 0) h5.fail("cannot flush the checkpoint");
             if (!f.close()) h5.fail("cannot close the checkpoint (the disk may be full)");
         } catch (...) {
@@ -476,6 +498,12 @@ void write_checkpoint(const fs::path &file, const Checkpoint &c) {
             ::unlink(tmp.c_str());
             throw;
         }
+    }
+    try {
+        checkpoint_digests::seal(tmp, userblock, stored);
+    } catch (const Error &e) {
+        ::unlink(tmp.c_str());
+        h5.fail(fmt::format("cannot write the checkpoint's digests: {}", e.what()));
     }
     sync_path(tmp, h5);
     if (::rename(tmp.c_str(), file.c_str()) != 0) {
@@ -490,6 +518,14 @@ void write_checkpoint(const fs::path &file, const Checkpoint &c) {
 Checkpoint read_checkpoint(const fs::path &file) {
     const H5 h5(file);
     if (!fs::exists(file)) h5.fail("no such file");
+    // Checked on the raw bytes first: HDF5 never parses a damaged file, and
+    // no damaged value (the format's version included) decides what is read.
+    const bool sealed = checkpoint_digests::sealed(file);
+    if (sealed)
+        if (const auto damage = checkpoint_digests::damage(file))
+            h5.fail(fmt::format("the checkpoint is damaged: {}; it cannot be trusted (restart "
+                                "from another checkpoint)",
+                                *damage));
     if (H5Fis_hdf5(file.c_str()) <= 0) h5.fail("not an HDF5 file (not a Talus checkpoint)");
     Handle f(h5.check(H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), "cannot open"), H5Fclose);
     const hid_t root = f.get();
@@ -499,6 +535,9 @@ Checkpoint read_checkpoint(const fs::path &file) {
     if (version < 1 || version > kFormatVersion)
         h5.fail(fmt::format("checkpoint format {}; this Talus reads formats 1 to {}", version,
                             kFormatVersion));
+    if (version >= 4 && !sealed)
+        h5.fail("the checkpoint is damaged: it has no digest table (format 4 and later have one "
+                "at the start of the file)");
     Checkpoint c;
     c.talus_version = h5.read_attr_string(root, "talus_version");
     c.abi_major = h5.read_attr<int>(root, "abi_major");
