@@ -38,6 +38,7 @@ talus::Checkpoint written(const fs::path &file, int steps) {
         run->sim->step(1.0);
     talus::Checkpoint c;
     c.scenario_text = kScenario;
+    c.run_id = "0123456789abcdef0123456789abcdef";
     c.state = run->sim->snapshot();
     c.plugins = talus::plugin_identities(run->scenario);
     talus::write_checkpoint(file, c);
@@ -62,7 +63,7 @@ std::string everything(const talus::Checkpoint &c) {
     auto put = [&](const auto &v) { o.write(reinterpret_cast<const char *>(&v), sizeof v); };
     auto text = [&](const std::string &t) { o << t.size() << ':' << t; };
     text(c.talus_version), put(c.abi_major), put(c.abi_minor);
-    text(c.scenario_path), text(c.scenario_text), text(c.scenario_sha256);
+    text(c.scenario_path), text(c.scenario_text), text(c.scenario_sha256), text(c.run_id);
     for (const talus::PluginIdentity &p : c.plugins) {
         text(p.material), text(p.qualified_id), text(p.path), text(p.library_version);
         text(p.model_version), text(p.sha256), put(p.abi_major), put(p.abi_minor);

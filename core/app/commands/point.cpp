@@ -60,7 +60,10 @@ void write_provenance(const Provenance &prov, const std::string &csv_file) {
 }
 
 std::string Point::run_rows(const PointCase &pc, std::vector<PointRow> &rows) const {
-    const Provenance prov{"point", case_file_, {{"material", &pc.material}}};
+    Provenance prov;
+    prov.command = "point";
+    prov.input_file = case_file_;
+    prov.materials = {{"material", &pc.material}};
     auto csv_text = [&] {
         std::ostringstream csv;
         write_point_csv(csv, *pc.instance, pc.axis, rows);

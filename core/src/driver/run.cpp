@@ -1,6 +1,7 @@
 #include <talus/driver/run.hpp>
 
 #include "governed_steps.hpp"
+#include "run_folder.hpp"
 
 #include <talus/driver/point_driver.hpp>
 #include <talus/input/yaml_input.hpp>
@@ -275,19 +276,6 @@ long next_multiple(double t, double every, long from) {
     return static_cast<long>(k);
 }
 
-// What a run writes into its folder: files, and on several ranks the
-// folders of each output's pieces (particles_<k>/, failure_step<n>/).
-bool is_own_file(const fs::path &p) {
-    const std::string name = p.filename().string();
-    for (const char *f : {"diagnostics.csv", "probes.csv", "particles.pvd", "failed_call.yaml",
-                          "final_particles.csv", "provenance.json", "stages.csv"})
-        if (name == f) return true;
-    if (name.rfind("particles_", 0) != 0 && name.rfind("failure_", 0) != 0) return false;
-    std::error_code ec;
-    return p.extension() == ".vtu" || p.extension() == ".pvtu" ||
-           (p.extension().empty() && fs::is_directory(p, ec));
-}
-
 // Removes a file, or a folder of pieces, of a previous run.
 void remove_own(const fs::path &p, const char *why) {
     std::error_code ec;
@@ -320,6 +308,12 @@ std::string fmt_time(double s) {
     return fmt::format("{}:{:02d}:{:02d}", t / 3600, (t / 60) % 60, t % 60);
 }
 
+// What names a run in its files: its id (Checkpoint::run_id) and the
+// digest of its scenario's text as it was read, both kept by its restarts.
+struct RunIdentity {
+    std::string run_id, scenario_sha256;
+};
+
 // Everything a run writes, every write checked (output_file.hpp). The VTK
 // file of an output time is complete before its CSV rows are written, so
 // no row stands for a file that is not there. On several ranks each writes
@@ -330,9 +324,9 @@ class RunOutput {
   public:
     // With `resume`, continues the output of an interrupted run as it
     // stood at its checkpoint. Collective.
-    RunOutput(const fs::path &dir, const Scenario &sc, const Simulation &sim,
+    RunOutput(const fs::path &dir, const Scenario &sc, const Simulation &sim, const RunIdentity &id,
               std::vector<std::int64_t> probe_ids, const OutputProgress *resume = nullptr)
-        : dir_(dir), sc_(sc), sim_(sim), comm_(sim.comm()), root_(comm_.rank() == 0),
+        : dir_(dir), sc_(sc), sim_(sim), id_(id), comm_(sim.comm()), root_(comm_.rank() == 0),
           probe_ids_(std::move(probe_ids)) {
         // State variables to write: those named in output.state, else every
         // one its plugin flags for output.
@@ -486,9 +480,13 @@ class RunOutput {
     // A new run's files (rank 0): first what made this run, before any
     // result exists, then the CSV headers.
     void start() {
-        Provenance prov{"run", sc_.file, {}};
+        Provenance prov;
+        prov.command = "run";
+        prov.input_file = sc_.file;
         for (const auto &m : sc_.materials)
             prov.materials.push_back({m.name, &m.spec});
+        prov.input_sha256 = id_.scenario_sha256;
+        prov.run_id = id_.run_id;
         write_file_atomically(dir_ / "provenance.json", provenance_json(prov));
         diag_ = OutputFile(dir_ / "diagnostics.csv");
         diag_ << "step,time,dt,mass,momentum_x,momentum_y,momentum_z,kinetic_energy,stress_work,"
@@ -638,6 +636,7 @@ class RunOutput {
     fs::path dir_;
     const Scenario &sc_;
     const Simulation &sim_;
+    RunIdentity id_;
     const Comm &comm_;
     bool root_ = true; // rank 0 writes all but the pieces
     std::vector<std::int64_t> probe_ids_;
@@ -818,9 +817,8 @@ std::string scenario_text_of(const Scenario &sc) {
 // Writes checkpoints/checkpoint_<step>.h5 and keeps the newest `keep`.
 class Checkpoints {
   public:
-    Checkpoints(const fs::path &dir, const Scenario &sc, std::string text)
-        : dir_(dir / "checkpoints"), sc_(sc), text_(std::move(text)),
-          sha_(fs::exists(sc.file) ? sha256_file(sc.file) : std::string()),
+    Checkpoints(const fs::path &dir, const Scenario &sc, std::string text, const RunIdentity &id)
+        : dir_(dir / "checkpoints"), sc_(sc), text_(std::move(text)), id_(id),
           plugins_(plugin_identities(sc)) {}
 
     bool possible() const { return !text_.empty(); }
@@ -840,7 +838,8 @@ class Checkpoints {
         });
         c.scenario_path = fs::absolute(sc_.file).string();
         c.scenario_text = text_;
-        c.scenario_sha256 = sha_;
+        c.scenario_sha256 = id_.scenario_sha256;
+        c.run_id = id_.run_id;
         c.plugins = plugins_;
         c.output.next_due = next_due;
         c.output.particle_steps = particle_steps;
@@ -899,7 +898,8 @@ class Checkpoints {
     }
     fs::path dir_;
     const Scenario &sc_;
-    std::string text_, sha_;
+    std::string text_;
+    RunIdentity id_;
     std::vector<PluginIdentity> plugins_;
     int written_ = 0;
 };
@@ -930,9 +930,45 @@ void write_or_stop(RunOutput &out, const Simulation &sim) {
     }
 }
 
+// The run's folder taken (on every rank, agreed): there to continue in, a
+// folder, and locked by rank 0 against a second run (run_folder.hpp).
+void take_folder(std::optional<FolderLock> &lock, const fs::path &dir, const RunOptions &opt,
+                 const Comm &comm) {
+    together(comm, [&] {
+        std::error_code ec;
+        if (opt.restart && !fs::is_directory(dir, ec))
+            throw Error(fmt::format("{}: no such folder: the checkpoint's run output is not there",
+                                    dir.string()));
+        if (fs::exists(dir, ec) && !fs::is_directory(dir, ec))
+            throw Error(fmt::format("{}: exists and is not a directory", dir.string()));
+        if (comm.rank() == 0) lock.emplace(dir, !opt.restart);
+    });
+}
+
+// The run's name and its scenario's digest: a new run's (rank 0's name on
+// every rank), or those of the run a checkpoint continues.
+RunIdentity run_identity(const RunOptions &opt, const Scenario &sc, const std::string &text,
+                         const Comm &comm) {
+    RunIdentity id;
+    if (opt.restart)
+        id = {opt.restart->run_id, opt.restart->scenario_sha256};
+    else
+        id.scenario_sha256 = text.empty() ? sha256_file(sc.file) : sha256_bytes(text);
+    // A checkpoint of a Talus that named no runs goes on under a new name.
+    if (id.run_id.empty()) {
+        std::string mine = comm.rank() == 0 ? new_run_id() : std::string(32, ' ');
+        const auto *p = reinterpret_cast<const std::byte *>(mine.data());
+        const std::vector<std::byte> all =
+            comm.broadcast(std::vector<std::byte>(p, p + mine.size()), 0);
+        id.run_id.assign(reinterpret_cast<const char *>(all.data()), all.size());
+    }
+    return id;
+}
+
 // What a run refuses before any work (on every rank, agreed): a misspelt
-// --plot-field, a checkpoint of other binaries (unless --force-restart), a
-// missing folder to continue in, a previous run's files (unless --force).
+// --plot-field, a checkpoint of other binaries (unless --force-restart),
+// another run's folder to continue in, a previous run's files (unless
+// --force).
 // Returns the final field's state offsets per material.
 std::vector<long> refuse_before_work(const Scenario &sc, const RunOptions &opt, const fs::path &dir,
                                      std::ostream &log) {
@@ -962,12 +998,8 @@ std::vector<long> refuse_before_work(const Scenario &sc, const RunOptions &opt, 
                                "checkpoint's (--force-restart):{}\n",
                                all);
         }
-        if (!fs::is_directory(dir))
-            throw Error(fmt::format("{}: no such folder: the checkpoint's run output is not there",
-                                    dir.string()));
+        refuse_foreign_folder(dir, *opt.restart);
     } else if (fs::exists(dir, ec)) {
-        if (!fs::is_directory(dir, ec))
-            throw Error(fmt::format("{}: exists and is not a directory", dir.string()));
         std::vector<fs::path> previous;
         for (const auto &e : fs::directory_iterator(dir, ec))
             if (is_own_file(e.path())) previous.push_back(e.path());
@@ -1085,10 +1117,12 @@ void log_start(const RunOptions &opt, const Simulation &sim, const Comm &comm,
             ? fmt::format(" on {} ranks of {} thread(s)", comm.size(), Simulation::max_threads())
             : std::string();
     if (opt.restart)
-        log << fmt::format("talus: continuing from step {} (t = {:.6g} s, stage '{}'), {} "
-                           "particles{}\n",
-                           sim.steps(), sim.time(), sim.stages()[sim.stage()].name, particles,
-                           spread);
+        log << fmt::format("talus: continuing from step {} (t = {:.6g} s{}), {} particles{}\n",
+                           sim.steps(), sim.time(),
+                           sim.stages().size() > 1 || !sim.stages()[0].name.empty()
+                               ? fmt::format(", stage '{}'", sim.stages()[sim.stage()].name)
+                               : std::string(),
+                           particles, spread);
     else
         log << fmt::format("talus: {} particles{}; about {:.3g} steps of {:.3g} s to t = {:g} s "
                            "(estimated from the initial state)\n",
@@ -1141,6 +1175,8 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     const Comm &comm = opt.solver.comm;
     const bool root = comm.rank() == 0;
     const fs::path dir = opt.output_dir.empty() ? default_output_dir(sc.file) : opt.output_dir;
+    std::optional<FolderLock> lock;
+    take_folder(lock, dir, opt, comm);
     std::vector<long> final_offsets;
     together(comm, [&] { final_offsets = refuse_before_work(sc, opt, dir, log); });
     Prepared prep = prepare_or_restore(sc, opt, log);
@@ -1151,13 +1187,15 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
         if (root) clear_previous_output(dir, opt);
     });
 
-    RunOutput out(dir, sc, sim, prep.probe_particles, opt.restart ? &opt.restart->output : nullptr);
+    const std::string text = opt.restart                 ? opt.restart->scenario_text
+                             : opt.scenario_text.empty() ? scenario_text_of(sc)
+                                                         : opt.scenario_text;
+    const RunIdentity id = run_identity(opt, sc, text, comm);
+    RunOutput out(dir, sc, sim, id, prep.probe_particles,
+                  opt.restart ? &opt.restart->output : nullptr);
     std::optional<Checkpoints> made;
     together(comm, [&] {
-        made.emplace(dir, sc,
-                     opt.restart                 ? opt.restart->scenario_text
-                     : opt.scenario_text.empty() ? scenario_text_of(sc)
-                                                 : opt.scenario_text);
+        made.emplace(dir, sc, text, id);
         if (!made->possible() && (sc.checkpoint.every || sc.checkpoint.steps || sc.checkpoint.wall))
             throw Error(fmt::format("{}: cannot read the scenario's text, which every checkpoint "
                                     "stores",

@@ -448,6 +448,7 @@ void write_checkpoint(const fs::path &file, const Checkpoint &c) {
             h5.attr_string(root, "talus_version", TALUS_VERSION_STRING);
             h5.attr<int>(root, "abi_major", TALUS_ABI_VERSION_MAJOR);
             h5.attr<int>(root, "abi_minor", TALUS_ABI_VERSION_MINOR);
+            h5.attr_string(root, "run_id", c.run_id);
             {
                 Handle sc = h5.group(root, "scenario");
                 h5.attr_string(sc.get(), "path", c.scenario_path);
@@ -542,6 +543,7 @@ Checkpoint read_checkpoint(const fs::path &file) {
     c.talus_version = h5.read_attr_string(root, "talus_version");
     c.abi_major = h5.read_attr<int>(root, "abi_major");
     c.abi_minor = h5.read_attr<int>(root, "abi_minor");
+    if (version >= 4) c.run_id = h5.read_attr_string(root, "run_id");
     {
         Handle sc = h5.open_group(root, "scenario");
         c.scenario_path = h5.read_attr_string(sc.get(), "path");
@@ -624,7 +626,8 @@ Checkpoint read_checkpoint_for(const fs::path &file, int rank, int ranks) {
         const fs::path f = existing(r);
         Checkpoint k = read_checkpoint(f);
         if (k.state.step != first.step || k.state.rank != r || k.state.boxes != first.boxes ||
-            k.scenario_sha256 != c.scenario_sha256 || k.state.sets.size() != first.sets)
+            k.scenario_sha256 != c.scenario_sha256 || k.run_id != c.run_id ||
+            k.state.sets.size() != first.sets)
             throw Error(fmt::format("{}: not rank {}'s part of {} (another step or run)",
                                     f.string(), r, file.string()));
         return k;

@@ -83,9 +83,11 @@ std::string provenance_json(const Provenance &p) {
     j += fmt::format("  \"material_abi\": \"{}.{}\",\n", TALUS_ABI_VERSION_MAJOR,
                      TALUS_ABI_VERSION_MINOR);
     j += fmt::format("  \"command\": {},\n", json_string(p.command));
+    if (!p.run_id.empty()) j += fmt::format("  \"run_id\": {},\n", json_string(p.run_id));
     j += fmt::format("  \"created_utc\": {},\n", json_string(utc_now()));
-    j += fmt::format("  \"input\": {{\"file\": {}, \"sha256\": {}}},\n",
-                     json_string(absolute_input(p)), json_string(file_sha256(p.input_file)));
+    j += fmt::format(
+        "  \"input\": {{\"file\": {}, \"sha256\": {}}},\n", json_string(absolute_input(p)),
+        json_string(p.input_sha256.empty() ? file_sha256(p.input_file) : p.input_sha256));
     j += "  \"materials\": [";
     for (std::size_t i = 0; i < p.materials.size(); ++i) {
         const MaterialSpec &s = *p.materials[i].spec;

@@ -49,18 +49,17 @@ PluginLibrary::Build read_build_info(const fs::path &file) {
 
 } // namespace
 
-std::string sha256_file(const fs::path &file) {
-    std::ifstream in(file, std::ios::binary);
-    if (!in) return {};
+namespace {
+
+// Feeds `more` chunks into SHA-256; the digest in hex, empty on a failure.
+template <class More>
+std::string sha256_of(More &&more) {
     std::unique_ptr<EVP_MD_CTX, decltype(&EVP_MD_CTX_free)> ctx(EVP_MD_CTX_new(), &EVP_MD_CTX_free);
     if (!ctx || EVP_DigestInit_ex(ctx.get(), EVP_sha256(), nullptr) != 1) return {};
-    std::vector<char> buf(1 << 16);
-    while (in) {
-        in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
-        const auto got = static_cast<std::size_t>(in.gcount());
-        if (got > 0 && EVP_DigestUpdate(ctx.get(), buf.data(), got) != 1) return {};
-    }
-    if (in.bad()) return {};
+    if (!more([&](const void *p, std::size_t n) {
+            return n == 0 || EVP_DigestUpdate(ctx.get(), p, n) == 1;
+        }))
+        return {};
     unsigned char md[EVP_MAX_MD_SIZE];
     unsigned int len = 0;
     if (EVP_DigestFinal_ex(ctx.get(), md, &len) != 1) return {};
@@ -68,6 +67,25 @@ std::string sha256_file(const fs::path &file) {
     for (unsigned int i = 0; i < len; ++i)
         fmt::format_to(std::back_inserter(hex), "{:02x}", md[i]);
     return hex;
+}
+
+} // namespace
+
+std::string sha256_file(const fs::path &file) {
+    std::ifstream in(file, std::ios::binary);
+    if (!in) return {};
+    return sha256_of([&](auto &&update) {
+        std::vector<char> buf(1 << 16);
+        while (in) {
+            in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
+            if (!update(buf.data(), static_cast<std::size_t>(in.gcount()))) return false;
+        }
+        return !in.bad();
+    });
+}
+
+std::string sha256_bytes(std::string_view bytes) {
+    return sha256_of([&](auto &&update) { return update(bytes.data(), bytes.size()); });
 }
 
 namespace {

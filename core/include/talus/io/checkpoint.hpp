@@ -48,6 +48,10 @@ struct Checkpoint {
     std::string talus_version;
     int abi_major = 0, abi_minor = 0;
     std::string scenario_path, scenario_text, scenario_sha256;
+    // The run's own name (32 hex digits, made at its start and kept by its
+    // restarts; also in its folder's provenance.json), so that a restart
+    // can tell its own folder from another run's. Empty before format 4.
+    std::string run_id;
     std::vector<PluginIdentity> plugins;
     OutputProgress output;
     Snapshot state;

@@ -22,6 +22,10 @@ struct Provenance {
     std::string command;    // "run", "point"
     std::string input_file; // the scenario or driver case
     std::vector<ProvenanceMaterial> materials;
+    // The digest of the input as read (default: of the file now).
+    std::string input_sha256;
+    // A run's name (Checkpoint::run_id); none for the point driver.
+    std::string run_id;
 };
 
 // As a JSON document (provenance.json beside a run's output).

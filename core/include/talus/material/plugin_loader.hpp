@@ -27,6 +27,7 @@
 #include <mutex>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace talus {
@@ -311,6 +312,8 @@ std::string check_parameter(const ParamInfo &p, const ParamValue &value);
 // SHA-256 of a file's content in hex (what sha256sum prints); empty when
 // the file cannot be read.
 std::string sha256_file(const std::filesystem::path &file);
+// The same of bytes in memory (a scenario's text as it was read).
+std::string sha256_bytes(std::string_view bytes);
 
 // The host's own identification passed to plugins ("talus 0.1.0").
 const char *host_name();
