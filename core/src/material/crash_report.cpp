@@ -2,6 +2,7 @@
 
 #include <atomic>
 #include <csignal>
+#include <cstdlib>
 #include <cstring>
 #include <unistd.h>
 
@@ -87,6 +88,70 @@ void on_alarm(int) {
     ::_exit(128 + SIGALRM);
 }
 
+// "model 'm' from lib, updating material 'x', group 'g', particles a..b,
+// in step n": the call, and the task where the solver said what it is.
+void put_call(const PluginCall *c) {
+    put("model '");
+    put(c->model());
+    put("' from ");
+    put(c->library());
+    const Task *t = t_task;
+    if (!t) return;
+    put(", updating material '");
+    put(t->material);
+    put("'");
+    if (t->group_names && t->group) {
+        put(", group '");
+        put(t->group_names[*t->group]);
+        put("'");
+    }
+    if (t->ids && t->count > 0) {
+        put(", particles ");
+        put_int(t->ids[0]);
+        if (t->ids[t->count - 1] != t->ids[0]) {
+            put("..");
+            put_int(t->ids[t->count - 1]);
+        }
+    }
+    if (t->step > 0) {
+        put(", in step ");
+        put_int(t->step);
+    } else {
+        put(", on the initial state");
+    }
+}
+
+// The one last action, under a time limit, then the end with `status`.
+[[noreturn]] void last_action_and_end(int status) {
+    if (LastAction a = g_action.load()) {
+        std::signal(SIGALRM, on_alarm);
+        ::alarm(60);
+        a(g_action_context.load());
+        ::alarm(0);
+    }
+    ::_exit(status);
+}
+
+// exit() called inside a plugin call (a model that ends the process where
+// it should fail the call; gfortran's STOP): the process would end with the
+// plugin's status, 0 included, and the run's output cut short. Registered
+// with on_exit, so it runs in the thread that called exit(), where t_call
+// says whether that thread was inside a plugin; an exit elsewhere goes on.
+void on_exit_in_call(int status, void *) {
+    const PluginCall *c = t_call;
+    if (!c) return;
+    if (g_entered.fetch_add(1) > 0) ::_exit(kExitInPluginCall);
+    put_who();
+    put("fatal: the material plugin called exit(");
+    put_int(status);
+    put(") inside ");
+    put_call(c);
+    put(". A plugin must fail the call (TALUS_STATUS_FAILED with a message), never end the "
+        "process: the run stops here.\n");
+    flush();
+    last_action_and_end(kExitInPluginCall);
+}
+
 void on_fatal(int sig) {
     if (g_entered.fetch_add(1) > 0) {
         // A second fault: in another thread at the same time, or inside the
@@ -100,34 +165,8 @@ void on_fatal(int sig) {
     put(signal_text(sig));
     put(")");
     if (const PluginCall *c = t_call) {
-        put(" inside the material plugin: model '");
-        put(c->model());
-        put("' from ");
-        put(c->library());
-        if (const Task *t = t_task) {
-            put(", updating material '");
-            put(t->material);
-            put("'");
-            if (t->group_names && t->group) {
-                put(", group '");
-                put(t->group_names[*t->group]);
-                put("'");
-            }
-            if (t->ids && t->count > 0) {
-                put(", particles ");
-                put_int(t->ids[0]);
-                if (t->ids[t->count - 1] != t->ids[0]) {
-                    put("..");
-                    put_int(t->ids[t->count - 1]);
-                }
-            }
-            if (t->step > 0) {
-                put(", in step ");
-                put_int(t->step);
-            } else {
-                put(", on the initial state");
-            }
-        }
+        put(" inside the material plugin: ");
+        put_call(c);
         put(". The plugin is at fault, not the input: run `talus plugin check` on it, or "
             "debug it under gdb.\n");
     } else {
@@ -135,13 +174,7 @@ void on_fatal(int sig) {
             "it with the scenario.\n");
     }
     flush();
-    if (LastAction a = g_action.load()) {
-        std::signal(SIGALRM, on_alarm);
-        ::alarm(60);
-        a(g_action_context.load());
-        ::alarm(0);
-    }
-    ::_exit(128 + sig);
+    last_action_and_end(128 + sig);
 }
 
 } // namespace
@@ -170,6 +203,8 @@ void install_handlers() {
     sa.sa_flags = SA_ONSTACK | SA_NODEFER;
     for (int sig : {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT})
         ::sigaction(sig, &sa, nullptr);
+    static bool exit_guard = false; // one registration: it runs once per one made
+    if (!exit_guard) exit_guard = ::on_exit(on_exit_in_call, nullptr) == 0;
 }
 
 void set_rank(int rank, int ranks) noexcept {

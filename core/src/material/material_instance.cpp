@@ -2,6 +2,7 @@
 // outputs, and its destruction.
 #include <talus/material/plugin_loader.hpp>
 
+#include "fp_environment.hpp"
 #include "plugin_errors.hpp"
 
 #include <talus/material/crash_report.hpp>
@@ -15,6 +16,7 @@ namespace talus {
 MaterialInstance::~MaterialInstance() {
     if (instance_) {
         const crash::PluginCall call(model_->id().c_str(), library_->path().c_str());
+        const FpGuard fp(*library_, model_->id().c_str(), "destroy");
         model_->raw().destroy(instance_);
     }
 }
@@ -87,6 +89,7 @@ MaterialInstance::Result MaterialInstance::call(talus_batch &b, bool setup) cons
         // with SAVE or COMMON data): never in the reentrant models' path.
         std::unique_lock<std::mutex> serial;
         if (!model_->reentrant()) serial = std::unique_lock<std::mutex>(library_->call_mutex());
+        const FpGuard fp(*library_, model_->id().c_str(), fn_name);
         r.status = fn(instance_, &b, &err);
     } catch (...) {
         r.status = TALUS_STATUS_FAILED;

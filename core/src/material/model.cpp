@@ -3,6 +3,7 @@
 #include <talus/material/plugin_loader.hpp>
 
 #include "descriptor_checker.hpp"
+#include "fp_environment.hpp"
 #include "plugin_errors.hpp"
 
 #include <talus/material/crash_report.hpp>
@@ -39,6 +40,7 @@ std::unique_ptr<MaterialInstance> Model::create(std::span<const ParamValue> valu
     std::int32_t status = TALUS_STATUS_FAILED;
     try {
         const crash::PluginCall call(id_.c_str(), library_->path().c_str());
+        const FpGuard fp(*library_, id_.c_str(), "create");
         if (create_ex_) {
             std::vector<talus_param_value> raw(values.size());
             std::vector<const talus_param_value *> ptrs(values.size());
@@ -89,6 +91,7 @@ std::unique_ptr<MaterialInstance> Model::create(std::span<const ParamValue> valu
         err = fresh_error();
         try {
             const crash::PluginCall call(id_.c_str(), library_->path().c_str());
+            const FpGuard fp(*library_, id_.c_str(), "instance_state");
             status = instance_state_(inst, &layout, &err);
         } catch (...) {
             throw Error(fmt::format("model '{}' ({}): instance_state threw an exception across "

@@ -4,6 +4,7 @@
 #include <talus/material/plugin_loader.hpp>
 
 #include "descriptor_checker.hpp"
+#include "fp_environment.hpp"
 #include "plugin_errors.hpp"
 
 #include <talus/material/crash_report.hpp>
@@ -128,6 +129,38 @@ void PluginLibrary::host_log(void *context, std::int32_t level, const char *mess
     }
 }
 
+void PluginLibrary::note_fp_change(const char *model, const char *call,
+                                   const std::string &what) const {
+    std::string line;
+    {
+        const std::lock_guard lock(log_mutex_);
+        if (fp_changes_++ > 0) return;
+        const std::string who =
+            model ? fmt::format("{} of model '{}'", call, model) : std::string(call);
+        fp_change_ = fmt::format("{}: {}", who, what);
+        line = fmt::format("warning: plugin {}: {} changed the floating-point environment ({}) "
+                           "and did not set it back; Talus put it back after that call and does "
+                           "after every call, but a plugin must leave the environment as it "
+                           "found it (`talus plugin check` fails it)",
+                           name_.empty() ? path_.string() : name_, who, what);
+    }
+    const std::lock_guard lock(g_log_sink_mutex);
+    if (g_log_sink)
+        g_log_sink(line);
+    else
+        std::fprintf(stderr, "%s\n", line.c_str());
+}
+
+std::string PluginLibrary::fp_change() const {
+    const std::lock_guard lock(log_mutex_);
+    return fp_change_;
+}
+
+std::size_t PluginLibrary::fp_changes() const {
+    const std::lock_guard lock(log_mutex_);
+    return fp_changes_;
+}
+
 std::size_t PluginLibrary::log_messages() const {
     const std::lock_guard lock(log_mutex_);
     return log_count_;
@@ -141,6 +174,8 @@ std::size_t PluginLibrary::log_suppressed() const {
 const void *PluginLibrary::extension(const char *id) const {
     if (!get_extension_ || !id) return nullptr;
     try {
+        const crash::PluginCall call("(get_extension)", path_.c_str());
+        const FpGuard fp(*this, nullptr, "get_extension");
         return get_extension_(id);
     } catch (...) {
         return nullptr;
@@ -163,7 +198,13 @@ std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
         throw Error(fmt::format("{}: plugin library not found", file.string()));
     // RTLD_NOW: an unresolved symbol is reported here rather than mid-run.
     // RTLD_LOCAL: two plugins never see each other's symbols.
+    // Its constructors run here (and set flush-to-zero if it was built
+    // with -ffast-math): what they change of the floating-point
+    // environment is put back like a call's (fp_environment.hpp).
+    const FpControl fp_before = fp_control();
     void *handle = dlopen(file.c_str(), RTLD_NOW | RTLD_LOCAL);
+    const FpControl fp_after = fp_control();
+    if (!(fp_after == fp_before)) set_fp_control(fp_before);
     if (!handle) {
         const char *why = dlerror();
         throw Error(fmt::format("{}: not a loadable shared library: {}", file.string(),
@@ -197,6 +238,7 @@ std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
     std::int32_t status = TALUS_STATUS_FAILED;
     try {
         const crash::PluginCall call("(its entry point)", file.c_str());
+        const FpGuard fp(*lib, nullptr, "its entry point");
         status = entry(&host, &desc, &err);
     } catch (...) {
         throw Error(
@@ -207,6 +249,11 @@ std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
                                 file.string(), TALUS_ABI_VERSION_MAJOR, TALUS_ABI_VERSION_MINOR,
                                 read_message(err)));
     lib->read_descriptor(desc);
+    if (!(fp_after == fp_before))
+        lib->note_fp_change(nullptr,
+                            "loading the library (its constructors; -ffast-math sets "
+                            "flush-to-zero as a library loads)",
+                            fp_difference(fp_before, fp_after));
     return lib;
 }
 

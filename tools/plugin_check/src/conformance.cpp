@@ -9,7 +9,6 @@
 #include <Eigen/Geometry>
 #include <fmt/format.h>
 
-#include <cfenv>
 #include <cmath>
 #include <csignal>
 #include <cstring>
@@ -21,9 +20,6 @@
 
 #include <sys/wait.h>
 #include <unistd.h>
-#if defined(__SSE__)
-#include <xmmintrin.h>
-#endif
 
 namespace talus {
 
@@ -174,16 +170,6 @@ double max_difference(const std::vector<Out> &a, const std::vector<Out> &b, doub
     return d;
 }
 
-unsigned fp_control_word() {
-    unsigned w = static_cast<unsigned>(fegetround());
-#if defined(__SSE__)
-    // Bits 6..15 of MXCSR: DAZ, exception masks, rounding, FTZ. Bits 0..5
-    // are sticky exception flags that any arithmetic may set.
-    w |= (_mm_getcsr() & 0xFFC0u) << 8;
-#endif
-    return w;
-}
-
 // Receives outcomes; in the isolated mode it writes them to a pipe.
 struct Sink {
     std::function<void(const CheckOutcome &)> emit;
@@ -195,7 +181,6 @@ class ModelChecks {
     ModelChecks(const Model &m, const CheckOptions &o, Sink &s) : model_(m), opt_(o), sink_(s) {}
 
     void run() {
-        fp_before_ = fp_control_word();
         if (!create()) return;
         if (!build_states()) return;
         zero_increment();
@@ -208,13 +193,16 @@ class ModelChecks {
         determinism();
         objectivity();
         instance_.reset();
-        const unsigned fp_after = fp_control_word();
-        report("fp environment", fp_after == fp_before_,
-               fp_after == fp_before_
-                   ? "rounding mode and MXCSR control bits unchanged by create/update/destroy"
-                   : fmt::format("control word changed from 0x{:x} to 0x{:x}: a plugin must not "
-                                 "change the floating-point environment",
-                                 fp_before_, fp_after));
+        // The host puts back what a call changes of the floating-point
+        // environment and the library records it (fp_environment.hpp):
+        // loading, create, update and destroy are all seen.
+        const std::string fp = model_.library().fp_change();
+        report("fp environment", fp.empty(),
+               fp.empty() ? "rounding mode, flush-to-zero and trap masks left as they were by "
+                            "loading, create, update and destroy"
+                          : fmt::format("{} (and {} call(s) in all); a plugin must leave the "
+                                        "floating-point environment as it found it",
+                                        fp, model_.library().fp_changes()));
     }
 
   private:
@@ -222,7 +210,6 @@ class ModelChecks {
     const CheckOptions &opt_;
     Sink &sink_;
     std::unique_ptr<MaterialInstance> instance_;
-    unsigned fp_before_ = 0;
     std::vector<Pt> states_;       // loaded states (start of the checks' increments)
     std::vector<Vec6> directions_; // loading direction that produced each state
     double stress_scale_ = 1.0;    // rho c^2 * strain_scale: stress of one increment

@@ -4,7 +4,8 @@
 // every call into a plugin with the model and library, the solver adds which
 // material, group, particles and step; a fatal-signal handler prints that
 // (async-signal-safe), runs one best-effort last action (the run writes the
-// state at that moment), and exits with 128 + the signal number.
+// state at that moment), and exits with 128 + the signal number. A plugin
+// that calls exit() inside a call is reported the same way.
 #pragma once
 
 #include <cstddef>
@@ -56,7 +57,12 @@ class TaskScope {
     const Task *saved_;
 };
 
-// Installs the fatal-signal handlers (process-wide; once is enough).
+// The exit status after a plugin called exit() inside a call (EX_SOFTWARE
+// of sysexits.h: the software failed, not the input).
+inline constexpr int kExitInPluginCall = 70;
+
+// Installs the fatal-signal handlers and the guard against exit() inside a
+// plugin call (process-wide; once is enough).
 void install_handlers();
 
 // On several MPI ranks: the report begins "talus: rank R of N:".

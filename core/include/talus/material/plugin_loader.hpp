@@ -183,6 +183,15 @@ class PluginLibrary : public std::enable_shared_from_this<PluginLibrary> {
     std::size_t log_messages() const;
     std::size_t log_suppressed() const;
 
+    // The first change a call into the library made to the calling
+    // thread's floating-point environment ("create of model 'x': rounding
+    // upward instead of to nearest"), empty if none; the host puts every
+    // such change back after the call (material/fp_environment.hpp) and
+    // logs the first. fp_changes() counts the calls that made one.
+    std::string fp_change() const;
+    std::size_t fp_changes() const;
+    void note_fp_change(const char *model, const char *call, const std::string &what) const;
+
     // How the library was compiled, from the string the SDK embeds
     // (TALUS_SDK_BUILD_INFO); unknown for plugins written without the SDK.
     struct Build {
@@ -206,6 +215,8 @@ class PluginLibrary : public std::enable_shared_from_this<PluginLibrary> {
     decltype(talus_library::get_extension) get_extension_ = nullptr;
     mutable std::mutex call_mutex_, log_mutex_;
     std::size_t log_count_ = 0;
+    mutable std::string fp_change_; // under log_mutex_
+    mutable std::size_t fp_changes_ = 0;
 };
 
 // Where plugins' log messages go (default: stderr), one finished line each

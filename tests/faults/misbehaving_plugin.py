@@ -1,0 +1,119 @@
+"""Faults of a plugin that misbehaves inside the talus process.
+
+usage: misbehaving_plugin.py CASE TALUS_EXE FIXTURE_DIR WORK_DIR
+
+CASE is one of
+  fp_environment  a plugin that sets upward rounding in create, or
+                  flush-to-zero as it loads: the run's results are those of a
+                  well-behaved plugin with the same arithmetic, bit for bit,
+                  and the log names the plugin and what it changed
+  exit            a plugin that calls exit(0) inside update: `talus run` and
+                  `talus point` exit non-zero, name the plugin (and in a run
+                  the material, group and step) and the run writes the state
+"""
+import glob
+import os
+import re
+import shutil
+import subprocess
+import sys
+
+# Two elastic disks that collide, every arithmetic path of the step
+# (the fixtures' elastic update is the same code in all of them).
+SCENARIO = """talus: 1
+dimension: 2
+plugins: [{library}]
+grid: {{origin: [0, 0], size: [1.0, 1.0], cell: 0.05}}
+materials:
+  elastic: {{model: {model}, density: 1000, youngs_modulus: 1.0e4, poisson_ratio: 0.3}}
+groups:
+  lower: {{material: elastic, shape: {{sphere: {{center: [0.3, 0.3], radius: 0.2}}}}, velocity: [0.5, 0.5]}}
+  upper: {{material: elastic, shape: {{sphere: {{center: [0.7, 0.7], radius: 0.2}}}}, velocity: [-0.5, -0.5]}}
+solver: {{scheme: usl, transfer: flip, shape: bspline2}}
+time: {{end: 0.2}}
+output:
+  every: 0.02
+  probes:
+    - {{name: centre, particle: [0.3, 0.3]}}
+"""
+
+POINT = """talus: 1
+plugins: [{library}]
+material: {{model: {model}, density: 1000, youngs_modulus: 1.0e7, poisson_ratio: 0.3}}
+time: {{end: 1.0, increments: 20}}
+strain:
+  xx: [[0, 0], [1, -0.01]]
+"""
+
+
+def talus(exe, fixtures, args):
+    env = dict(os.environ, OMP_NUM_THREADS="1")
+    r = subprocess.run([exe, "--plugin-path", fixtures] + args, env=env, capture_output=True,
+                       text=True)
+    print(f"$ talus {' '.join(args)}\n  exit {r.returncode}\n  {r.stderr.strip()[-900:]}")
+    return r
+
+
+def run(exe, fixtures, work, name, library, model):
+    scenario = os.path.join(work, name + ".yaml")
+    with open(scenario, "w") as f:
+        f.write(SCENARIO.format(library=library, model=model))
+    out = os.path.join(work, name)
+    return talus(exe, fixtures, ["run", scenario, "--output-dir", out]), out
+
+
+def results(folder):
+    texts = {}
+    for f in ("diagnostics.csv", "probes.csv"):
+        with open(os.path.join(folder, f)) as fh:
+            texts[f] = fh.read()
+    return texts
+
+
+def fp_environment(exe, fixtures, work):
+    r, good = run(exe, fixtures, work, "good", "fixture_good_c", "good_c_elastic")
+    assert r.returncode == 0, r.stderr
+    reference = results(good)
+    for library, said in (("fixture_fp_env",
+                           r"create of model 'fixture_model' changed the floating-point "
+                           r"environment \(rounding upward instead of to nearest\)"),
+                          ("fixture_ftz_at_load",
+                           r"loading the library .* changed the floating-point environment "
+                           r"\(flush-to-zero on; denormals-are-zero on\)")):
+        r, out = run(exe, fixtures, work, library, library, "fixture_model")
+        assert r.returncode == 0, r.stderr
+        assert re.search("warning: plugin fixture_model_library: " + said, r.stderr), r.stderr
+        got = results(out)
+        for f in reference:
+            assert got[f] == reference[f], f"{library}: {f} differs from the well-behaved plugin's"
+
+
+def exits(exe, fixtures, work):
+    r, out = run(exe, fixtures, work, "exits", "fixture_exits", "exits")
+    assert r.returncode != 0, f"talus run exited 0 after a plugin's exit()\n{r.stderr}"
+    assert re.search(r"talus: fatal: the material plugin called exit\(0\) inside model 'exits' "
+                     r"from [^ ]*fixture_exits\.so, updating material 'elastic', group '(lower|"
+                     r"upper)', particles [0-9.]+, in step [0-9]+", r.stderr), r.stderr
+    assert re.search(r"the state .* is in [^ ]*failure_step[0-9]+\.vtu", r.stderr), r.stderr
+    assert glob.glob(os.path.join(out, "failure_step*.vtu")), os.listdir(out)
+    assert "bug in Talus" not in r.stderr, r.stderr
+
+    case = os.path.join(work, "exits_point.yaml")
+    with open(case, "w") as f:
+        f.write(POINT.format(library="fixture_exits", model="exits"))
+    r = talus(exe, fixtures, ["point", case, "--output", os.path.join(work, "exits_point.csv")])
+    assert r.returncode != 0, f"talus point exited 0 after a plugin's exit()\n{r.stderr}"
+    assert re.search(r"talus: fatal: the material plugin called exit\(0\) inside model 'exits'",
+                     r.stderr), r.stderr
+
+
+def main():
+    case, exe, fixtures, work = sys.argv[1:5]
+    shutil.rmtree(work, ignore_errors=True)
+    os.makedirs(work)
+    {"fp_environment": fp_environment, "exit": exits}[case](exe, fixtures, work)
+    print("ok")
+
+
+if __name__ == "__main__":
+    main()
