@@ -930,6 +930,27 @@ void write_or_stop(RunOutput &out, const Simulation &sim) {
     }
 }
 
+// A checkpoint written, or the run stopped with the state now written
+// (a checkpoint that cannot be written, the disk full, is no reason to
+// lose the state it was to keep).
+fs::path checkpoint_or_stop(Checkpoints &checkpoints, const Simulation &sim, RunOutput &out,
+                            long next_due, long particle_steps) {
+    try {
+        return checkpoints.write(sim, out, next_due, particle_steps);
+    } catch (const Error &e) {
+        const bool agreed = dynamic_cast<const AgreedError *>(&e) != nullptr;
+        if (sim.comm().distributed() && !agreed) throw;
+        const std::string m =
+            fmt::format("{}\nthe run stopped at step {} (t = {:.6g} s): its checkpoint could not "
+                        "be written{}",
+                        e.what(), sim.steps(), sim.time(),
+                        out.write_failure(
+                            true, fmt::format("particles as at the end of step {}", sim.steps())));
+        if (agreed) throw AgreedError(m);
+        throw Error(m);
+    }
+}
+
 // The run's folder taken (on every rank, agreed): there to continue in, a
 // folder, and locked by rank 0 against a second run (run_folder.hpp).
 void take_folder(std::optional<FolderLock> &lock, const fs::path &dir, const RunOptions &opt,
@@ -1071,7 +1092,7 @@ void stop_if_signalled(const Comm &comm, Checkpoints &checkpoints, Simulation &s
                                       name, sim.steps(), sim.time(),
                                       "the scenario's text could not be read"),
                           sig);
-    const fs::path file = checkpoints.write(sim, out, next_k, particle_steps);
+    const fs::path file = checkpoint_or_stop(checkpoints, sim, out, next_k, particle_steps);
     throw Interrupted(
         fmt::format("talus: stopped by {} at step {} (t = {:.6g} s); the run continues with: "
                     "{}talus run --restart {}{}",
@@ -1270,7 +1291,7 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
             }
             stop_if_signalled(comm, checkpoints, sim, out, next_k, particle_steps);
             if (checkpoint_due()) {
-                checkpoints.write(sim, out, next_k, particle_steps);
+                checkpoint_or_stop(checkpoints, sim, out, next_k, particle_steps);
                 last_ck_wall = elapsed();
             }
             const double interval = opt.progress_tty ? 0.5 : opt.progress_interval;

@@ -18,6 +18,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <fcntl.h>
 #include <unistd.h>
@@ -65,14 +66,42 @@ class Handle {
     herr_t (*close_)(hid_t);
 };
 
+// The system's reason in HDF5's error stack ("errno = 28, error message =
+// ..."), for a failed write: the disk full, a quota, a file-size limit.
+std::string system_reason() {
+    int found = 0;
+    H5Ewalk2(
+        H5E_DEFAULT, H5E_WALK_DOWNWARD,
+        [](unsigned, const H5E_error2_t *e, void *out) -> herr_t {
+            const char *at = e && e->desc ? std::strstr(e->desc, "errno = ") : nullptr;
+            if (at) *static_cast<int *>(out) = std::atoi(at + 8);
+            return at ? 1 : 0; // the first one, nearest the system call
+        },
+        &found);
+    return found > 0 ? std::strerror(found) : std::string();
+}
+
+// HDF5 as this file uses it, set up before its first call. Without the
+// library's exit handler: HDF5 1.10 keeps a file whose close failed (a
+// write that found the disk full) in its table after freeing it, and its
+// exit handler then crashed closing it again (fixed in HDF5 1.14, PR 2291).
+// Every file here is closed by its Handle, so nothing is left for the
+// handler to do.
+void setup_hdf5() {
+    static const bool once = [] { return H5dont_atexit() >= 0; }();
+    (void)once;
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); // our messages, not HDF5's stack
+}
+
 // Reads and writes one file, every failure a talus::Error naming it.
 class H5 {
   public:
-    explicit H5(fs::path file) : file_(std::move(file)) {
-        H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); // our messages, not HDF5's stack
-    }
+    explicit H5(fs::path file) : file_(std::move(file)) { setup_hdf5(); }
+    // With the system's reason where HDF5 met one.
     [[noreturn]] void fail(const std::string &what) const {
-        throw Error(fmt::format("{}: {}", file_.string(), what));
+        const std::string why = system_reason();
+        throw Error(fmt::format("{}: {}{}", file_.string(), what,
+                                why.empty() ? std::string() : ": " + why));
     }
     hid_t check(hid_t id, const std::string &what) const {
         if (id < 0) fail(what);
