@@ -220,10 +220,15 @@ std::int32_t create_ex(const talus_create_args *args, talus_instance **out, talu
     const talus_param_value *const *v = args->values;
     auto inst = std::unique_ptr<Instance>(new (std::nothrow) Instance());
     if (!inst) return fail(e, -1, "out of memory");
-    // The library: relative to the file the material was read from.
+    // The library: relative to the file the material was read from (to the
+    // working folder where there is none), never looked up through
+    // LD_LIBRARY_PATH and the system's folders, where a name without a '/'
+    // would send dlopen (a library of the same name elsewhere is not the
+    // one the user named).
     std::string lib = v[kLibrary]->string;
-    if (!lib.empty() && lib[0] != '/' && args->base_dir && *args->base_dir)
-        lib = std::string(args->base_dir) + "/" + lib;
+    if (!lib.empty() && lib[0] != '/')
+        lib = (args->base_dir && *args->base_dir ? std::string(args->base_dir) : std::string(".")) +
+              "/" + lib;
     inst->library = lib;
     inst->handle = dlopen(lib.c_str(), RTLD_NOW | RTLD_LOCAL);
     if (!inst->handle) {

@@ -73,7 +73,10 @@ MaterialSpec read_material(const yaml::Node &node, PluginRegistry &registry) {
         spec.params.push_back(std::move(value));
     }
     spec.context.material_name = spec.name;
-    spec.context.base_dir = std::filesystem::path(node.file()).parent_path().string();
+    // Absolute: a file named relative to it never resolves through a
+    // search path, nor against another working folder.
+    spec.context.base_dir =
+        std::filesystem::absolute(std::filesystem::path(node.file())).parent_path().string();
 
     // An instance-state model's layout depends on its parameters: ask an
     // instance (the plugin's verdict on the parameters, at their place).

@@ -258,8 +258,8 @@ typedef struct talus_create_args {
                                                by the host against the table */
     const char *material_name;              /* the user's name for the material, for messages */
     const char *base_dir;                   /* the folder of the file the material was read
-                                               from, for relative paths in string parameters;
-                                               "" when there is none */
+                                               from (absolute), for relative paths in string
+                                               parameters; "" when there is none */
 } talus_create_args;
 
 /* ---- the per-call batch of points ---- */

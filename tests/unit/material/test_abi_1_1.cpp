@@ -11,6 +11,8 @@
 
 #include <gtest/gtest.h>
 
+#include <filesystem>
+
 #include <array>
 #include <atomic>
 #include <cstdint>
@@ -145,7 +147,9 @@ TEST(Abi11, ListAndStringParametersAreReadAndCheckedFromYaml) {
     ASSERT_EQ(spec.initial_state.size(), 7u);
     EXPECT_EQ(spec.initial_state[5], 3.0);
     EXPECT_EQ(spec.initial_state[6], 4.0);
-    EXPECT_EQ(spec.context.base_dir, "");
+    // A file named without a folder is in the working folder; base_dir
+    // says so absolutely, so that nothing resolves through a search path.
+    EXPECT_EQ(spec.context.base_dir, std::filesystem::current_path().string());
 
     auto error_of = [&](const std::string &body) {
         try {
