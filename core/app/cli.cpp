@@ -1,5 +1,7 @@
 #include "cli.hpp"
 
+#include <talus/regular_file.hpp>
+
 #include <talus/error.hpp>
 #include <talus/mpm/simulation.hpp>
 
@@ -52,7 +54,8 @@ const CLI::Validator kThreadCount(
 
 YamlKind yaml_kind(const std::string &file) {
     try {
-        const YAML::Node n = YAML::LoadFile(file);
+        // Read as every input is (a FIFO is refused, not waited on).
+        const YAML::Node n = YAML::Load(read_regular_file(file));
         if (!n.IsMap()) return YamlKind::other;
         if (n["groups"] || n["grid"]) return YamlKind::scenario;
         if (n["strain"] || (n["material"] && !n["materials"])) return YamlKind::point_case;

@@ -27,6 +27,7 @@
 #include <talus/material_abi.h>
 
 #include <dlfcn.h>
+#include <sys/stat.h>
 
 #include <algorithm>
 #include <array>
@@ -230,6 +231,15 @@ std::int32_t create_ex(const talus_create_args *args, talus_instance **out, talu
         lib = (args->base_dir && *args->base_dir ? std::string(args->base_dir) : std::string(".")) +
               "/" + lib;
     inst->library = lib;
+    // A FIFO would block dlopen for ever: regular files only.
+    struct stat st {};
+    if (::stat(lib.c_str(), &st) == 0 && !S_ISREG(st.st_mode))
+        return fail(e, -1,
+                    "library: '" + lib + "' is " +
+                        (S_ISDIR(st.st_mode)    ? "a directory"
+                         : S_ISFIFO(st.st_mode) ? "a FIFO"
+                                                : "a device or socket") +
+                        ", not a file: the UMAT library must be a regular file");
     inst->handle = dlopen(lib.c_str(), RTLD_NOW | RTLD_LOCAL);
     if (!inst->handle) {
         const char *why = dlerror();

@@ -1,4 +1,5 @@
 #include <talus/input/csv_table.hpp>
+#include <talus/regular_file.hpp>
 
 #include <talus/error.hpp>
 
@@ -16,6 +17,8 @@ int CsvTable::column(const std::string &name) const {
 }
 
 CsvTable read_csv_table(const std::string &file, const std::string &where) {
+    if (const std::string why = not_a_regular_file(file); !why.empty())
+        throw Error(fmt::format("{}: error: the CSV file '{}': {}", where, file, why));
     std::ifstream in(file);
     if (!in) throw Error(fmt::format("{}: error: cannot open the CSV file '{}'", where, file));
     CsvTable t;

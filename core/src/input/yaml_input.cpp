@@ -1,4 +1,5 @@
 #include <talus/input/yaml_input.hpp>
+#include <talus/regular_file.hpp>
 
 #include <fmt/format.h>
 
@@ -170,11 +171,14 @@ Node load_string(const std::string &text, const std::string &name) {
 }
 
 std::string read_text_file(const std::string &path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw Error(fmt::format("{}: error: cannot open file", path));
-    std::ostringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
+    try {
+        return read_regular_file(path);
+    } catch (const Error &e) {
+        // "<path>: error: ...", as every message about an input file.
+        const std::string m = e.what();
+        throw Error(
+            fmt::format("{}: error: {}", path, m.substr(std::min(m.size(), path.size() + 2))));
+    }
 }
 
 Node load_file(const std::string &path) { return load_string(read_text_file(path), path); }

@@ -12,6 +12,7 @@
 #include <talus/error.hpp>
 #include <talus/material/plugin_loader.hpp>
 #include <talus/material_abi.h>
+#include <talus/regular_file.hpp>
 
 #include <fmt/format.h>
 #include <hdf5.h>
@@ -548,6 +549,7 @@ void write_checkpoint(const fs::path &file, const Checkpoint &c) {
 Checkpoint read_checkpoint(const fs::path &file) {
     const H5 h5(file);
     if (!fs::exists(file)) h5.fail("no such file");
+    if (const std::string why = not_a_regular_file(file); !why.empty()) h5.fail(why);
     // Checked on the raw bytes first: HDF5 never parses a damaged file, and
     // no damaged value (the format's version included) decides what is read.
     const bool sealed = checkpoint_digests::sealed(file);

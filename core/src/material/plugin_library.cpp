@@ -8,6 +8,7 @@
 #include "plugin_errors.hpp"
 
 #include <talus/material/crash_report.hpp>
+#include <talus/regular_file.hpp>
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -196,6 +197,8 @@ std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
     std::error_code ec;
     if (!fs::exists(file, ec))
         throw Error(fmt::format("{}: plugin library not found", file.string()));
+    if (const std::string why = not_a_regular_file(file); !why.empty())
+        throw Error(fmt::format("{}: {}", file.string(), why));
     // RTLD_NOW: an unresolved symbol is reported here rather than mid-run.
     // RTLD_LOCAL: two plugins never see each other's symbols.
     // Its constructors run here (and set flush-to-zero if it was built

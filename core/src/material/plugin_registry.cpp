@@ -120,7 +120,10 @@ void PluginRegistry::load_all() {
         std::vector<fs::path> files;
         for (const auto &e : fs::directory_iterator(dir, ec)) {
             const std::string fn = e.path().filename().string();
-            if (fn.rfind("talus_", 0) == 0 && e.path().extension() == ".so")
+            // Regular files only: a FIFO or a folder of that name is not a
+            // plugin, and opening a FIFO would block.
+            if (fn.rfind("talus_", 0) == 0 && e.path().extension() == ".so" &&
+                fs::is_regular_file(e.path(), ec))
                 files.push_back(e.path());
         }
         std::sort(files.begin(), files.end()); // deterministic order
