@@ -6,6 +6,7 @@
 #include <talus/driver/point_driver.hpp>
 #include <talus/input/yaml_input.hpp>
 #include <talus/io/checkpoint.hpp>
+#include <talus/io/csv_field.hpp>
 #include <talus/io/output_file.hpp>
 #include <talus/io/provenance.hpp>
 #include <talus/io/vtk_output.hpp>
@@ -391,8 +392,8 @@ class RunOutput {
                               : st.until && !met         ? "duration_not_quiescent"
                                                          : "duration";
             stages_ << fmt::format("{},{},{},{:.17g},{},{:.17g},{},{:.17g},{}\n", sim_.stage(),
-                                   st.name, stage_first_step_, sim_.stage_start(), sim_.steps(),
-                                   sim_.time(), end, sim_.last_kinetic_energy_ratio(),
+                                   csv_field(st.name), stage_first_step_, sim_.stage_start(),
+                                   sim_.steps(), sim_.time(), end, sim_.last_kinetic_energy_ratio(),
                                    outputs_ - 1);
             stages_.flush();
         });
@@ -504,18 +505,20 @@ class RunOutput {
             std::string h = "time";
             const char *axes = "xyz";
             for (const Probe &p : sc_.output.probes) {
-                const std::string &nm = p.name;
                 const bool particle = p.kind == Probe::Kind::particle;
+                auto column = [&](const std::string &what) {
+                    h += ',' + csv_field(p.name + '.' + what);
+                };
                 for (int d = 0; d < sc_.dim; ++d)
-                    h += fmt::format(",{}.{}", nm, axes[d]);
+                    column(std::string(1, axes[d]));
                 if (particle)
                     for (int d = 0; d < sc_.dim; ++d)
-                        h += fmt::format(",{}.u{}", nm, axes[d]);
+                        column(std::string("u") + axes[d]);
                 for (int d = 0; d < sc_.dim; ++d)
-                    h += fmt::format(",{}.v{}", nm, axes[d]);
+                    column(std::string("v") + axes[d]);
                 if (particle)
                     for (const char *c : {"xx", "yy", "zz", "xy", "yz", "xz"})
-                        h += fmt::format(",{}.sig_{}", nm, c);
+                        column(std::string("sig_") + c);
             }
             prob_ << h << "\n";
             prob_.flush();
