@@ -217,11 +217,19 @@ Prepared prepare_run(Scenario &sc, const SolverOptions &solver) {
     }
     slender_group_notes(sc, sim, plan.notes);
     plan.first_dt = sc.solver.dt ? *sc.solver.dt : dt_crit;
-    plan.steps = std::ceil(sc.end_time / plan.first_dt);
+    // A stage's last step is cut to end on its duration: each stage takes
+    // at least one step, however short.
+    plan.steps = 0.0;
+    for (const StageSpec &st : sc.stages)
+        plan.steps += std::max(1.0, std::ceil(st.duration / plan.first_dt));
+    if (sc.stages.empty()) plan.steps = std::ceil(sc.end_time / plan.first_dt);
     if (sc.output.vtk) {
-        // One file per output time, at most one per step, plus the start.
+        // The start, one file per output time and one at the end of every
+        // stage (where no output time fell on its last step), at most one
+        // per step.
         const double due = sc.output.every > 0.0 ? std::ceil(sc.end_time / sc.output.every) : 1.0;
-        plan.output_files = std::min(due, plan.steps) + 1.0;
+        const double stage_ends = static_cast<double>(std::max<std::size_t>(sc.stages.size(), 1));
+        plan.output_files = std::min(due + stage_ends, plan.steps) + 1.0;
     }
     if (plan.steps > kMaxSteps)
         plan.over_limits.push_back(sc.end_origin.warning(fmt::format(
@@ -250,8 +258,14 @@ Prepared prepare_run(Scenario &sc, const SolverOptions &solver) {
                 *sc.checkpoint.every, sc.end_time)));
     if (plan.output_files > kMaxOutputFiles)
         plan.over_limits.push_back(sc.output.every_origin.warning(fmt::format(
-            "the cadence asks for about {:.3g} VTK files, more than {:.0e}; raise output.every",
-            plan.output_files, kMaxOutputFiles)));
+            "the run would write about {:.3g} VTK files, more than {:.0e} ({}one at the end of "
+            "each of its {} stage(s)); raise output.every{}",
+            plan.output_files, kMaxOutputFiles,
+            sc.output.every > 0.0
+                ? fmt::format("one every {:g} s to t = {:g} s, ", sc.output.every, sc.end_time)
+                : std::string(),
+            std::max<std::size_t>(sc.stages.size(), 1),
+            sc.stages.size() > 1000 ? ", join stages, or set output.vtk: false" : "")));
     return out;
 }
 

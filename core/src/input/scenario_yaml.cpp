@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <map>
+#include <unordered_set>
 
 namespace talus {
 
@@ -242,11 +243,11 @@ std::vector<GroupSpec::StateValue> read_group_state(const yaml::Node &n, const S
 
 // The group called `name`; an unknown name fails at `n`.
 std::size_t group_named(const std::string &name, const yaml::Node &n, const Scenario &s) {
-    std::vector<std::string> names;
-    for (std::size_t g = 0; g < s.groups.size(); ++g) {
+    for (std::size_t g = 0; g < s.groups.size(); ++g)
         if (s.groups[g].name == name) return g;
-        names.push_back(s.groups[g].name);
-    }
+    std::vector<std::string> names; // for the "did you mean", only on a miss
+    for (const GroupSpec &g : s.groups)
+        names.push_back(g.name);
     const std::string guess = yaml::closest_match(name, std::span<const std::string>(names));
     n.fail(fmt::format("no group named '{}'{}", name,
                        guess.empty() ? "" : fmt::format(" (did you mean '{}'?)", guess)));
@@ -529,6 +530,7 @@ void read_stages(const yaml::Node &list, Scenario &s) {
         material[g] = s.groups[g].material;
     Conditions current = s.conditions;
     double total = 0.0;
+    std::unordered_set<std::string> stage_names;
     for (std::size_t k = 0; k < list.size(); ++k) {
         const yaml::Node e = list.at(k);
         e.expect_map();
@@ -539,11 +541,10 @@ void read_stages(const yaml::Node &list, Scenario &s) {
         const yaml::Node name = e.require("name");
         st.name = name.as_string();
         if (st.name.empty()) name.fail("expected a name (it marks the stage in the output)");
-        for (const StageSpec &o : s.stages)
-            if (o.name == st.name)
-                name.fail(fmt::format("stage name '{}' used twice (it marks the stage in the "
-                                      "output)",
-                                      st.name));
+        if (!stage_names.insert(st.name).second)
+            name.fail(fmt::format("stage name '{}' used twice (it marks the stage in the "
+                                  "output)",
+                                  st.name));
         st.duration = positive(e.require("duration"), "duration (s)");
         total += st.duration;
         if (const yaml::Node u = e.get("until"); u.defined()) st.until = read_until(u, prefix);
@@ -596,8 +597,7 @@ void read_stages(const yaml::Node &list, Scenario &s) {
         }
         if (const yaml::Node m = e.get("set_material"); m.defined()) {
             m.expect_map();
-            for (const std::string &gname : m.keys()) {
-                const yaml::Node v = m.get(gname);
+            for (const auto &[gname, v] : m.entries()) {
                 const std::size_t g = group_named(gname, v, s);
                 const std::size_t to = material_index(v, s);
                 if (!present(g) || appears[g] == k)
@@ -682,8 +682,7 @@ void read_grid(const yaml::Node &root, Scenario &s) {
 void read_constants(const yaml::Node &root, Scenario &s) {
     if (const yaml::Node cs = root.get("constants"); cs.defined()) {
         cs.expect_map();
-        for (const std::string &name : cs.keys()) {
-            const yaml::Node c = cs.get(name);
+        for (const auto &[name, c] : cs.entries()) {
             if (const std::string why = SpatialField::check_constant_name(name); !why.empty())
                 c.fail(why);
             s.constants.push_back({name, c.as_double()});
@@ -695,8 +694,7 @@ void read_constants(const yaml::Node &root, Scenario &s) {
 void read_materials(const yaml::Node &root, PluginRegistry &registry, Scenario &s) {
     const yaml::Node mats = root.require("materials");
     mats.expect_map();
-    for (const std::string &name : mats.keys()) {
-        const yaml::Node m = mats.get(name);
+    for (const auto &[name, m] : mats.entries()) {
         NamedMaterial nm;
         nm.name = name;
         nm.spec = read_material(m, registry);
@@ -772,9 +770,8 @@ GroupSpec read_group(const yaml::Node &g, const std::string &name, const Scenari
 void read_groups(const yaml::Node &root, Scenario &s) {
     const yaml::Node groups = root.require("groups");
     groups.expect_map();
-    for (const std::string &name : groups.keys()) {
-        s.groups.push_back(read_group(groups.get(name), name, s));
-    }
+    for (const auto &[name, group] : groups.entries())
+        s.groups.push_back(read_group(group, name, s));
     if (s.groups.empty()) groups.fail("expected at least one group");
 }
 
@@ -934,6 +931,7 @@ void read_output_state(const yaml::Node &st, Scenario &s) {
 
 void read_probes(const yaml::Node &pr, Scenario &s) {
     pr.expect_sequence();
+    std::unordered_set<std::string> probe_names;
     for (std::size_t i = 0; i < pr.size(); ++i) {
         const yaml::Node e = pr.at(i);
         allow(e, "output.probes[]");
@@ -950,9 +948,8 @@ void read_probes(const yaml::Node &pr, Scenario &s) {
             p.kind = Probe::Kind::centre_of_mass;
             p.group = group_index(e.require("centre_of_mass"), s);
         }
-        for (const Probe &q : s.output.probes)
-            if (q.name == p.name)
-                e.require("name").fail(fmt::format("probe name '{}' used twice", p.name));
+        if (!probe_names.insert(p.name).second)
+            e.require("name").fail(fmt::format("probe name '{}' used twice", p.name));
         s.output.probes.push_back(std::move(p));
     }
 }

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <fstream>
 #include <sstream>
+#include <unordered_map>
 
 namespace talus::yaml {
 
@@ -63,9 +64,18 @@ Node Node::at(std::size_t index) const {
 }
 
 std::vector<std::string> Node::keys() const {
-    expect_map();
     std::vector<std::string> out;
-    std::vector<YAML::Mark> marks;
+    for (auto &[key, value] : entries())
+        out.push_back(std::move(key));
+    return out;
+}
+
+std::vector<std::pair<std::string, Node>> Node::entries() const {
+    expect_map();
+    std::vector<std::pair<std::string, Node>> out;
+    // Where each key was first seen, by name: a map of many keys (groups)
+    // is read in one pass, not in one search of the whole map per key.
+    std::unordered_map<std::string, YAML::Mark> seen;
     for (const auto &kv : node_) {
         // A key is a name: `? [a, b]: 1`, `{a: 1}: 2`, `"": 1` or an empty `: 1`
         // is not.
@@ -80,14 +90,13 @@ std::vector<std::string> Node::keys() const {
         // yaml-cpp keeps both of two equal keys and hands out the first for
         // every lookup: a key (or a group or material name) given twice
         // would silently lose its second definition.
-        const auto dup = std::find(out.begin(), out.end(), key);
-        if (dup != out.end())
+        const auto [first, fresh] = seen.emplace(key, kv.first.Mark());
+        if (!fresh)
             throw Error(
                 fmt::format("{}: error: '{}' is given twice (first at {}); keys must be unique",
                             mark_text(file_, kv.first.Mark()), child_path(path_, key),
-                            mark_text(file_, marks[static_cast<std::size_t>(dup - out.begin())])));
-        out.push_back(key);
-        marks.push_back(kv.first.Mark());
+                            mark_text(file_, first->second)));
+        out.emplace_back(key, Node(kv.second, file_, child_path(path_, key), mark_));
     }
     return out;
 }

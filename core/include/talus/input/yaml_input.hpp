@@ -11,6 +11,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 namespace talus::yaml {
@@ -44,8 +45,11 @@ class Node {
     bool defined() const { return node_.IsDefined() && !node_.IsNull(); }
     Node at(std::size_t index) const;
     std::size_t size() const { return node_.size(); }
-    // The keys of a map in file order.
+    // The keys of a map in file order (a key given twice is an error).
     std::vector<std::string> keys() const;
+    // The keys with their values, in file order, in one pass over the map
+    // (get() searches the whole map for each key).
+    std::vector<std::pair<std::string, Node>> entries() const;
 
     // Scalars, with type errors naming the key and the expected type.
     double as_double() const;
