@@ -9,6 +9,7 @@
 #include <talus/io/csv_field.hpp>
 #include <talus/io/output_file.hpp>
 #include <talus/io/provenance.hpp>
+#include <talus/io/pvd_file.hpp>
 #include <talus/io/vtk_output.hpp>
 #include <talus/material/crash_report.hpp>
 #include <talus/sdk/voigt.hpp>
@@ -420,10 +421,14 @@ class RunOutput {
         if (sc_.output.vtk) {
             const std::string name = particles(fmt::format("particles_{:05d}", outputs_));
             pvd_.emplace_back(sim_.time(), name);
-            // Rewritten after every frame so that a run stopped early still
-            // leaves a valid collection.
+            // A valid collection after every frame, so that a run stopped
+            // early leaves one: written whole at the first, then grown.
             together(comm_, [&] {
-                if (root_) write_pvd(dir_ / "particles.pvd", pvd_);
+                if (!root_) return;
+                if (collection_.is_open())
+                    collection_.append(pvd_.back().first, pvd_.back().second);
+                else
+                    collection_.start(dir_ / "particles.pvd", pvd_);
             });
         }
         rows();
@@ -575,7 +580,7 @@ class RunOutput {
             throw Error(fmt::format("{}: cannot list the folder: {}", dir_.string(), ec.message()));
         for (const fs::path &p : after)
             remove_own(p, "a file written after the checkpoint");
-        if (sc_.output.vtk) write_pvd(dir_ / "particles.pvd", pvd_);
+        if (sc_.output.vtk) collection_.start(dir_ / "particles.pvd", pvd_);
     }
 
     // A row of diagnostics.csv and of probes.csv (collective: the sums are
@@ -660,6 +665,7 @@ class RunOutput {
     std::vector<std::string> fields_;
     OutputFile diag_, prob_, stages_;
     std::vector<std::pair<double, std::string>> pvd_;
+    PvdFile collection_; // rank 0's particles.pvd
     int outputs_ = 0;
     long last_written_step_ = -1;
     long stage_first_step_ = 1;

@@ -237,14 +237,4 @@ void write_pvtu(const fs::path &file, const Simulation &sim,
     write_file_atomically(file, x);
 }
 
-void write_pvd(const fs::path &file, const std::vector<std::pair<double, std::string>> &entries) {
-    std::string c = "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"1.0\" "
-                    "byte_order=\"LittleEndian\">\n  <Collection>\n";
-    for (const auto &[t, f] : entries)
-        c += fmt::format("    <DataSet timestep=\"{:.17g}\" part=\"0\" file=\"{}\"/>\n", t,
-                         xml_escape(f));
-    c += "  </Collection>\n</VTKFile>\n";
-    write_file_atomically(file, c);
-}
-
 } // namespace talus

@@ -28,8 +28,4 @@ void write_pvtu(const std::filesystem::path &file, const Simulation &sim,
                 const std::vector<std::string> &state_fields,
                 const std::vector<std::string> &pieces);
 
-// The collection: (time, file name relative to the .pvd) per entry.
-void write_pvd(const std::filesystem::path &file,
-               const std::vector<std::pair<double, std::string>> &entries);
-
 } // namespace talus
