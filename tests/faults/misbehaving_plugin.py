@@ -10,6 +10,10 @@ CASE is one of
   exit            a plugin that calls exit(0) inside update: `talus run` and
                   `talus point` exit non-zero, name the plugin (and in a run
                   the material, group and step) and the run writes the state
+  crash_after     a crash outside any plugin call after a plugin has run (a
+                  plugin's write past its arrays crashes the host later):
+                  the report names the last plugin called as the likely
+                  cause, not "a bug in Talus" alone
 """
 import glob
 import os
@@ -107,11 +111,28 @@ def exits(exe, fixtures, work):
                      r.stderr), r.stderr
 
 
+def crash_after(exe, fixtures, work):
+    # At rest and long (seconds): the plugin's thread crashes mid-run, 50 ms in.
+    scenario = os.path.join(work, "after.yaml")
+    with open(scenario, "w") as f:
+        f.write(SCENARIO.format(library="fixture_crashes_after_return",
+                                model="crashes_after_return")
+                .replace("end: 0.2", "end: 100").replace("velocity: [0.5, 0.5]", "velocity: [0, 0]")
+                .replace("velocity: [-0.5, -0.5]", "velocity: [0, 0]"))
+    r = talus(exe, fixtures, ["run", scenario, "--output-dir", os.path.join(work, "after"),
+                              "--allow-large"])
+    assert r.returncode == 128 + 11, f"exit {r.returncode}"
+    assert re.search(r"outside any plugin call\. The likely cause is a plugin that wrote past "
+                     r"its arrays .* model 'crashes_after_return' from [^ ]*"
+                     r"fixture_crashes_after_return\.so: run `talus plugin check`", r.stderr,
+                     re.S), r.stderr
+
+
 def main():
     case, exe, fixtures, work = sys.argv[1:5]
     shutil.rmtree(work, ignore_errors=True)
     os.makedirs(work)
-    {"fp_environment": fp_environment, "exit": exits}[case](exe, fixtures, work)
+    {"fp_environment": fp_environment, "exit": exits, "crash_after": crash_after}[case](exe, fixtures, work)
     print("ok")
 
 

@@ -19,6 +19,11 @@ std::atomic<int> g_entered{0};
 
 std::atomic<int> g_rank{-1}, g_ranks{0};
 
+// The plugin call that returned last, on any thread: a crash outside any
+// call may be its doing (a write past its arrays corrupts what the host
+// uses next). Relaxed stores: a hint for the report, no order needed.
+std::atomic<const char *> g_last_model{nullptr}, g_last_library{nullptr};
+
 // Async-signal-safe output: the message is built in a static buffer and
 // written by write(2) at once (flush), so that the reports of several
 // ranks crashing together do not interleave (a write of up to PIPE_BUF
@@ -169,6 +174,15 @@ void on_fatal(int sig) {
         put_call(c);
         put(". The plugin is at fault, not the input: run `talus plugin check` on it, or "
             "debug it under gdb.\n");
+    } else if (const char *model = g_last_model.load(std::memory_order_relaxed)) {
+        put(" in talus, outside any plugin call. The likely cause is a plugin that wrote past "
+            "its arrays and corrupted memory Talus used later; the last plugin call to return "
+            "was model '");
+        put(model);
+        put("' from ");
+        put(g_last_library.load(std::memory_order_relaxed));
+        put(": run `talus plugin check` on it (its buffers check). If it passes, this is a bug "
+            "in Talus; please report it with the scenario.\n");
     } else {
         put(" in talus itself, outside any plugin call. This is a bug in Talus; please report "
             "it with the scenario.\n");
@@ -184,7 +198,11 @@ PluginCall::PluginCall(const char *model, const char *library) noexcept
     t_call = this;
 }
 
-PluginCall::~PluginCall() { t_call = saved_; }
+PluginCall::~PluginCall() {
+    t_call = saved_;
+    g_last_model.store(model_, std::memory_order_relaxed);
+    g_last_library.store(library_, std::memory_order_relaxed);
+}
 
 TaskScope::TaskScope(const Task *task) noexcept : saved_(t_task) { t_task = task; }
 TaskScope::~TaskScope() { t_task = saved_; }

@@ -5,6 +5,8 @@
 #include <talus/sdk/kinematics.hpp>
 #include <talus/sdk/voigt.hpp>
 
+#include "guarded_array.hpp"
+
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <fmt/format.h>
@@ -100,11 +102,16 @@ RowMat3 advance_F(const RowMat3 &F0, const Vec6 &de) {
 
 // Runs points [begin, begin+n) as one batch. `in_place` makes the end arrays
 // the start arrays, as a host updating its particle arrays in place would.
+// Writes outside a batch's arrays, seen by run_batch and reported by the
+// "buffers" check (guarded_array.hpp).
+check::Overruns overruns;
+
 MaterialInstance::Result run_batch(const MaterialInstance &mi, const std::vector<Pt> &pts,
                                    std::size_t begin, std::size_t n, std::uint32_t flags,
                                    std::vector<Out> &outs, bool in_place = false) {
     const std::size_t ns = mi.state_size();
-    std::vector<double> de(6 * n), F0(9 * n), F1(9 * n), rho(n), s0(6 * n), q0(ns * n), s1(6 * n),
+    using check::GuardedArray;
+    GuardedArray de(6 * n), F0(9 * n), F1(9 * n), rho(n), s0(6 * n), q0(ns * n), s1(6 * n),
         q1(ns * n), c(n), D(36 * n), length(n, 1.0), R(9 * n, 0.0);
     // The 1.1 context as a host gives it: each point's id is its index in
     // the check's list of points (so a point keeps its id in a batch and
@@ -141,6 +148,28 @@ MaterialInstance::Result run_batch(const MaterialInstance &mi, const std::vector
     b.characteristic_length = length.data();
     b.rotation = R.data();
     const MaterialInstance::Result r = mi.update(b);
+    // Every array the plugin was handed, inputs included: a write outside
+    // any of them would land in the host's memory in a run.
+    const std::pair<const char *, const GuardedArray *> arrays[] = {
+        {"strain_increment", &de},
+        {"F_start", &F0},
+        {"F_end", &F1},
+        {"density", &rho},
+        {"stress_start", &s0},
+        {"state_start", &q0},
+        {"stress_end", &s1},
+        {"state_end", &q1},
+        {"wave_speed", &c},
+        {"tangent", &D},
+        {"characteristic_length", &length},
+        {"rotation", &R}};
+    for (const auto &[name, a] : arrays)
+        if (const std::string d = a->damage(name); !d.empty())
+            overruns.note(fmt::format(
+                "update wrote {}{} (a batch of {} point(s), {} state "
+                "value(s) each)",
+                d, in_place && (a == &s0 || a == &q0) ? ", the end array too (in place)" : "", n,
+                ns));
     if (outs.size() < begin + n) outs.resize(begin + n);
     for (std::size_t i = 0; i < n; ++i) {
         Out &o = outs[begin + i];
@@ -193,6 +222,14 @@ class ModelChecks {
         determinism();
         objectivity();
         instance_.reset();
+        report("buffers", overruns.count() == 0,
+               overruns.count() == 0
+                   ? fmt::format("no write outside a batch's arrays (guard bands of {} values on "
+                                 "both sides of each)",
+                                 check::GuardedArray::kGuard)
+                   : fmt::format("{} ({} batch(es) in all): a plugin that writes outside its "
+                                 "arrays corrupts the host's memory in a run",
+                                 overruns.first(), overruns.count()));
         // The host puts back what a call changes of the floating-point
         // environment and the library records it (fp_environment.hpp):
         // loading, create, update and destroy are all seen.
