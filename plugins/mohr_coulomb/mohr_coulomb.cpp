@@ -212,6 +212,18 @@ struct MohrCoulomb {
                 throw talus::sdk::Failure("residual_dilation_angle (" + fmt_g(psi_r_) +
                                           " deg) exceeds residual_friction_angle (" +
                                           fmt_g(phi_r_) + " deg)");
+            // The law softens: a residual above the peak would harden the
+            // material with plastic strain, most often two values swapped.
+            if (phi_r_ > phi_)
+                throw talus::sdk::Failure("residual_friction_angle (" + fmt_g(phi_r_) +
+                                          " deg) exceeds friction_angle (" + fmt_g(phi_) +
+                                          " deg, the peak): softening lowers the strength to "
+                                          "its residual; are the two swapped?");
+            if (c_r_ > c_)
+                throw talus::sdk::Failure("residual_cohesion (" + fmt_g(c_r_) +
+                                          " Pa) exceeds cohesion (" + fmt_g(c_) +
+                                          " Pa, the peak): softening lowers the strength to its "
+                                          "residual; are the two swapped?");
         } else if (phi_r_ != 0.0 || psi_r_ != 0.0 || c_r_ != 0.0 || k0_ != 0.0 || k1_ != 0.0) {
             throw talus::sdk::Failure(
                 "residual_friction_angle, residual_dilation_angle, residual_cohesion, "

@@ -218,6 +218,14 @@ Prepared prepare_run(Scenario &sc, const SolverOptions &solver) {
     }
     slender_group_notes(sc, sim, plan.notes);
     plan.first_dt = sc.solver.dt ? *sc.solver.dt : dt_crit;
+    // Outputs come at most once per step: a cadence far below the step
+    // writes a file after every step, most often a unit slip.
+    if (sc.output.vtk && sc.output.every > 0.0 && sc.output.every < 0.1 * plan.first_dt)
+        plan.notes.push_back(sc.output.every_origin.warning(fmt::format(
+            "{:g} s is far below the time step ({:.3g} s at t = 0): outputs come "
+            "at most once per step, so every step writes a VTK file (about {:.3g} of them); is "
+            "it in the right unit?",
+            sc.output.every, plan.first_dt, std::ceil(sc.end_time / plan.first_dt) + 1.0)));
     // A stage's last step is cut to end on its duration: each stage takes
     // at least one step, however short.
     plan.steps = 0.0;

@@ -7,6 +7,7 @@
 #include <talus/input/material_yaml.hpp>
 #include <talus/input/time_function_yaml.hpp>
 
+#include <Eigen/LU>
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -231,7 +232,46 @@ void read_duration(const yaml::Node &s, Stage &st) {
         inc.fail(fmt::format("expected 1 <= increments <= 1e8, got {}", st.increments));
 }
 
-// A stage written in the general form.
+// The six conditions a eps + b sig = value of a stage must fix the six
+// strains and stresses together: a condition that is a combination of the
+// others (a constraint repeating a control, two proportional constraints)
+// leaves the increment undetermined whatever the material, and the solve
+// would fail, or pick an answer, in the first step. Rows of [a b], the
+// controls and held stresses first, then the constraints in their order:
+// the first row that adds nothing to the rank of those before is named.
+void refuse_dependent(const Stage &st, const std::vector<int> &free, const yaml::Node &where) {
+    std::vector<int> order;
+    for (int c = 0; c < 6; ++c)
+        if (std::find(free.begin(), free.end(), c) == free.end()) order.push_back(c);
+    order.insert(order.end(), free.begin(), free.end());
+    auto named = [&](int c) {
+        const Condition &k = st.conditions[static_cast<std::size_t>(c)];
+        const bool constraint = std::find(free.begin(), free.end(), c) != free.end();
+        return constraint ? fmt::format("the constraint '{}' (in place of {})", k.label,
+                                        kVoigtNames[static_cast<std::size_t>(c)])
+                          : fmt::format("'{}'", k.label);
+    };
+    Eigen::MatrixXd m(6, 12);
+    for (int r = 0; r < 6; ++r) {
+        const Condition &k =
+            st.conditions[static_cast<std::size_t>(order[static_cast<std::size_t>(r)])];
+        m.row(r) << k.a.transpose(), k.b.transpose();
+    }
+    for (int rows = 1; rows <= 6; ++rows) {
+        // Relative to the largest coefficient: the user's weights are O(1).
+        Eigen::FullPivLU<Eigen::MatrixXd> lu(m.topRows(rows));
+        lu.setThreshold(1e-10);
+        if (lu.rank() == rows) continue;
+        std::string before;
+        for (int r = 0; r + 1 < rows; ++r)
+            before += (r ? ", " : "") + named(order[static_cast<std::size_t>(r)]);
+        where.fail(fmt::format("the stage's conditions are not independent: {} is a combination "
+                               "of {}; the six must fix the strain and stress together: drop it, "
+                               "or free another component",
+                               named(order[static_cast<std::size_t>(rows - 1)]), before));
+    }
+}
+
 Stage read_general_stage(const yaml::Node &s) {
     constexpr std::array<std::string_view, 12> keys = {
         "name",  "duration", "increments", "control",     "constraints", "free",
@@ -338,6 +378,7 @@ Stage read_general_stage(const yaml::Node &s) {
         }
     for (std::size_t i = 0; i < free.size(); ++i)
         st.conditions[static_cast<std::size_t>(free[i])] = extra[i];
+    refuse_dependent(st, free, s);
     if (const yaml::Node u = s.get("until"); u.defined()) st.until = read_until(u);
     return st;
 }

@@ -290,6 +290,21 @@ GroupShape read_shape(const yaml::Node &n, int dim) {
             s.polygon.push_back({v[0], v[1]});
         }
         if (s.polygon.size() < 3) p.fail("expected at least 3 vertices [x, y]");
+        // The shoelace area against the square of its extent: a polygon
+        // whose vertices lie on a line (to round-off) encloses nothing,
+        // though a point on its boundary may still count as inside it.
+        double area2 = 0.0, lo_x = s.polygon[0][0], hi_x = lo_x, lo_y = s.polygon[0][1],
+               hi_y = lo_y;
+        for (std::size_t i = 0; i < s.polygon.size(); ++i) {
+            const auto &a = s.polygon[i], &next = s.polygon[(i + 1) % s.polygon.size()];
+            area2 += a[0] * next[1] - next[0] * a[1];
+            lo_x = std::min(lo_x, a[0]), hi_x = std::max(hi_x, a[0]);
+            lo_y = std::min(lo_y, a[1]), hi_y = std::max(hi_y, a[1]);
+        }
+        const double extent = std::max(hi_x - lo_x, hi_y - lo_y);
+        if (!(std::abs(area2) > 1e-12 * extent * extent))
+            p.fail(fmt::format("the polygon encloses no area (its {} vertices lie on a line{})",
+                               s.polygon.size(), extent > 0.0 ? "" : ", or on one point"));
     }
     return s;
 }

@@ -170,10 +170,17 @@ std::vector<double> Node::as_doubles() const {
 
 Node load_string(const std::string &text, const std::string &name) {
     try {
-        YAML::Node root = YAML::Load(text);
-        if (!root.IsDefined() || root.IsNull())
+        // Every document, so that a second one (after a '---') is refused
+        // instead of silently ignored, as YAML::Load would.
+        const std::vector<YAML::Node> docs = YAML::LoadAll(text);
+        if (docs.empty() || !docs[0].IsDefined() || docs[0].IsNull())
             throw Error(fmt::format("{}: error: the file is empty", name));
-        return Node(root, name, "");
+        if (docs.size() > 1)
+            throw Error(fmt::format("{}: error: a second YAML document (after a '---' line): a "
+                                    "file holds one document, and the rest would be ignored; "
+                                    "remove the '---' or split the file",
+                                    mark_text(name, docs[1].Mark())));
+        return Node(docs[0], name, "");
     } catch (const YAML::ParserException &e) {
         throw Error(fmt::format("{}: error: YAML syntax: {}", mark_text(name, e.mark), e.msg));
     }
