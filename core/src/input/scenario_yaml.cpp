@@ -1,5 +1,6 @@
 #include <talus/input/scenario_yaml.hpp>
 
+#include <talus/input/error_list.hpp>
 #include <talus/input/material_yaml.hpp>
 #include <talus/input/time_function_yaml.hpp>
 
@@ -706,18 +707,25 @@ void read_constants(const yaml::Node &root, Scenario &s) {
 }
 
 // Each material: its model, parameters checked by the plugin at their place.
-void read_materials(const yaml::Node &root, PluginRegistry &registry, Scenario &s) {
+// Each one read on its own: the errors of several are all reported, and
+// the names of those that failed are kept in `failed`.
+void read_materials(const yaml::Node &root, PluginRegistry &registry, Scenario &s,
+                    yaml::ErrorList &errors, std::unordered_set<std::string> &failed) {
     const yaml::Node mats = root.require("materials");
     mats.expect_map();
-    for (const auto &[name, m] : mats.entries()) {
-        NamedMaterial nm;
-        nm.name = name;
-        nm.spec = read_material(m, registry);
-        nm.origin = origin_of(m);
-        instantiate(nm.spec, m); // the plugin's verdict on the parameters, at their place
-        s.materials.push_back(std::move(nm));
+    const auto entries = mats.entries();
+    for (const auto &[name, m] : entries) {
+        const bool ok = errors.attempt([&] {
+            NamedMaterial nm;
+            nm.name = name;
+            nm.spec = read_material(m, registry);
+            nm.origin = origin_of(m);
+            instantiate(nm.spec, m); // the plugin's verdict on the parameters, at their place
+            s.materials.push_back(std::move(nm));
+        });
+        if (!ok) failed.insert(name);
     }
-    if (s.materials.empty()) mats.fail("expected at least one material");
+    if (entries.empty()) mats.fail("expected at least one material");
 }
 
 // One group: its material, shape, particles per cell and initial fields.
@@ -782,12 +790,25 @@ GroupSpec read_group(const yaml::Node &g, const std::string &name, const Scenari
     return gs;
 }
 
-void read_groups(const yaml::Node &root, Scenario &s) {
+// Each one read on its own, as the materials; a group of a material that
+// failed says nothing more (its material's error is the one to fix).
+// Returns whether every group was read.
+bool read_groups(const yaml::Node &root, Scenario &s, yaml::ErrorList &errors,
+                 const std::unordered_set<std::string> &failed_materials) {
     const yaml::Node groups = root.require("groups");
     groups.expect_map();
-    for (const auto &[name, group] : groups.entries())
-        s.groups.push_back(read_group(group, name, s));
-    if (s.groups.empty()) groups.fail("expected at least one group");
+    const auto entries = groups.entries();
+    bool all = true;
+    for (const auto &[name, group] : entries) {
+        const yaml::Node mat = group.is_map() ? group.get("material") : yaml::Node(group);
+        if (mat.defined() && mat.is_scalar() && failed_materials.count(mat.as_string())) {
+            all = false;
+            continue;
+        }
+        all &= errors.attempt([&] { s.groups.push_back(read_group(group, name, s)); });
+    }
+    if (entries.empty()) groups.fail("expected at least one group");
+    return all;
 }
 
 // The scheme, transfer, shape function, time step and rank balance.
@@ -1005,18 +1026,33 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
     if (s.dim != 2 && s.dim != 3)
         dim.fail(fmt::format("expected 2 (plane strain) or 3, got {}", s.dim));
 
+    // The parts read on their own, every error kept (ErrorList); a part
+    // is not read where one it depends on failed: the groups need the
+    // grid, the constants and their materials; the boundaries and loads,
+    // the stages and the outputs name groups and materials.
+    yaml::ErrorList errors;
+    bool plugins_ok = true;
     if (const yaml::Node plugins = root.get("plugins"); plugins.defined())
-        load_plugin_list(plugins, registry);
-
-    read_grid(root, s);
-    read_constants(root, s);
-    read_materials(root, registry, s);
-    read_groups(root, s);
-    read_conditions(root, "", s, s.conditions);
-    read_solver(root, s);
-    read_time(root, s);
-    read_checkpoint(root, s);
-    read_output(root, s);
+        plugins_ok = errors.attempt([&] { load_plugin_list(plugins, registry); });
+    const bool grid_ok = errors.attempt([&] { read_grid(root, s); });
+    const bool constants_ok = errors.attempt([&] { read_constants(root, s); });
+    std::unordered_set<std::string> failed_materials;
+    bool parts_ok = false;
+    if (plugins_ok)
+        errors.attempt([&] { read_materials(root, registry, s, errors, failed_materials); });
+    if (plugins_ok && grid_ok && constants_ok)
+        errors.attempt([&] {
+            parts_ok = read_groups(root, s, errors, failed_materials) && failed_materials.empty();
+        });
+    parts_ok = parts_ok && errors.empty();
+    bool conditions_ok = false;
+    if (parts_ok)
+        conditions_ok = errors.attempt([&] { read_conditions(root, "", s, s.conditions); });
+    errors.attempt([&] { read_solver(root, s); });
+    if (conditions_ok) errors.attempt([&] { read_time(root, s); });
+    errors.attempt([&] { read_checkpoint(root, s); });
+    if (parts_ok) errors.attempt([&] { read_output(root, s); });
+    errors.throw_if_any();
     return s;
 }
 
