@@ -9,6 +9,9 @@ CASE is one of
   busy_folder       a second run into a folder another run is writing is
                     refused, naming the first run's PID; the first run's files
                     stay whole; once it has ended (or was killed) a run goes in
+  checkpoints_link  checkpoints/ a symbolic link to a folder holding
+                    checkpoints: a new run, --force or not, leaves them there
+                    and refuses; to an empty folder it goes in and writes there
 """
 import glob
 import os
@@ -160,11 +163,30 @@ def busy_folder(exe, data, work):
     assert whole(folder) == 5
 
 
+def checkpoints_link(exe, data, work):
+    scenario = os.path.join(data, "checkpointed.yaml")
+    out, scratch = os.path.join(work, "out"), os.path.join(work, "scratch")
+    run_ok(exe, ["run", scenario, "--output-dir", out])
+    shutil.move(os.path.join(out, "checkpoints"), scratch)
+    os.symlink(scratch, os.path.join(out, "checkpoints"))
+    kept = sorted(os.listdir(scratch))
+    assert kept, "no checkpoints to keep"
+    for force in ([], ["--force"]):
+        r = talus(exe, ["run", scenario, "--output-dir", out] + force, log=True)
+        assert r.returncode != 0 and "a symbolic link" in r.stderr, r.stderr
+        assert sorted(os.listdir(scratch)) == kept, "checkpoints removed through the link"
+    for f in kept:
+        os.remove(os.path.join(scratch, f))
+    run_ok(exe, ["run", scenario, "--output-dir", out, "--force"])
+    assert os.listdir(scratch), "the run's checkpoints are not in the linked folder"
+
+
 def main():
     case, exe, data, work = sys.argv[1:5]
     shutil.rmtree(work, ignore_errors=True)
     os.makedirs(work)
-    {"foreign_restart": foreign_restart, "busy_folder": busy_folder}[case](exe, data, work)
+    {"foreign_restart": foreign_restart, "busy_folder": busy_folder,
+     "checkpoints_link": checkpoints_link}[case](exe, data, work)
     print("ok")
 
 

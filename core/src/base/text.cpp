@@ -30,6 +30,9 @@ std::size_t edit_distance(std::string_view a, std::string_view b) {
 
 template <class S>
 std::string closest_impl(std::string_view word, std::span<const S> candidates) {
+    // A word of hundreds of characters is no misspelt name (and its edit
+    // distance to each candidate would cost its length times theirs).
+    if (word.size() > 200) return {};
     std::string best;
     std::size_t best_d = std::string_view::npos;
     for (const auto &c : candidates) {
@@ -52,6 +55,11 @@ std::string closest_match(std::string_view word, std::span<const std::string_vie
 }
 std::string closest_match(std::string_view word, std::span<const std::string> candidates) {
     return closest_impl(word, candidates);
+}
+
+std::string clip(std::string_view text) {
+    if (text.size() <= 80) return std::string(text);
+    return std::string(text.substr(0, 60)) + "... (" + std::to_string(text.size()) + " characters)";
 }
 
 bool is_snake_identifier(std::string_view s) {

@@ -1052,6 +1052,19 @@ std::vector<long> refuse_before_work(const Scenario &sc, const RunOptions &opt, 
         }
         refuse_foreign_folder(dir, *opt.restart);
     } else if (fs::exists(dir, ec)) {
+        // A new run removes the previous run's checkpoints: never through
+        // a link (checkpoints/ on a scratch disk), into a folder that may
+        // hold more than this run's.
+        const fs::path ck = dir / "checkpoints";
+        if (fs::is_symlink(ck, ec) && fs::is_directory(ck, ec))
+            for (const auto &e : fs::directory_iterator(ck, ec))
+                if (e.path().extension() == ".h5")
+                    throw Error(fmt::format(
+                        "{}: a symbolic link (to {}) to a folder that holds checkpoints ({}, "
+                        "...): a new run would remove them there; empty that folder, or point "
+                        "the link at an empty one",
+                        ck.string(), fs::read_symlink(ck, ec).string(),
+                        e.path().filename().string()));
         std::vector<fs::path> previous;
         for (const auto &e : fs::directory_iterator(dir, ec))
             if (is_own_file(e.path())) previous.push_back(e.path());

@@ -92,7 +92,7 @@ E choose(const yaml::Node &n, const std::vector<std::pair<std::string_view, E>> 
     std::string list;
     for (auto nm : names)
         list += (list.empty() ? "" : ", ") + std::string(nm);
-    n.fail(fmt::format("unknown value '{}'{}; expected one of: {}", word,
+    n.fail(fmt::format("unknown value '{}'{}; expected one of: {}", clip(word),
                        guess.empty() ? "" : fmt::format(" (did you mean '{}'?)", guess), list));
 }
 

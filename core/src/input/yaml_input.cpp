@@ -18,8 +18,9 @@ std::string mark_text(const std::string &file, const YAML::Mark &m) {
     return fmt::format("{}:{}:{}", file, m.line + 1, m.column + 1);
 }
 
+// For messages only: a key of any length is shown clipped.
 std::string child_path(const std::string &parent, std::string_view key) {
-    return parent.empty() ? std::string(key) : parent + "." + std::string(key);
+    return parent.empty() ? clip(key) : parent + "." + clip(key);
 }
 
 } // namespace
@@ -131,9 +132,10 @@ double Node::as_double() const {
     try {
         v = node_.as<double>();
     } catch (const YAML::Exception &) {
-        fail(fmt::format("expected a number, got '{}'", node_.Scalar()));
+        fail(fmt::format("expected a number, got '{}'", clip(node_.Scalar())));
     }
-    if (!std::isfinite(v)) fail(fmt::format("expected a finite number, got '{}'", node_.Scalar()));
+    if (!std::isfinite(v))
+        fail(fmt::format("expected a finite number, got '{}'", clip(node_.Scalar())));
     return v;
 }
 
@@ -142,7 +144,7 @@ long long Node::as_integer() const {
     try {
         return node_.as<long long>();
     } catch (const YAML::Exception &) {
-        fail(fmt::format("expected an integer, got '{}'", node_.Scalar()));
+        fail(fmt::format("expected an integer, got '{}'", clip(node_.Scalar())));
     }
 }
 
@@ -151,7 +153,7 @@ bool Node::as_bool() const {
     try {
         return node_.as<bool>();
     } catch (const YAML::Exception &) {
-        fail(fmt::format("expected true or false, got '{}'", node_.Scalar()));
+        fail(fmt::format("expected true or false, got '{}'", clip(node_.Scalar())));
     }
 }
 
