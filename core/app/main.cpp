@@ -104,7 +104,22 @@ int main(int argc, char **argv) {
             // reported with the file, instead of killing the process
             // unexplained.
             std::signal(SIGXFSZ, SIG_IGN);
-            return c->run(ctx);
+            // How many of a plugin's log messages were not shown, once the
+            // command is done (or failed).
+            auto notes = [&] {
+                if (comm.rank() != 0) return;
+                for (const auto &lib : registry.libraries())
+                    if (const std::string n = lib->log_note(); !n.empty()) std::cerr << n << '\n';
+            };
+            int status = 0;
+            try {
+                status = c->run(ctx);
+            } catch (...) {
+                notes();
+                throw;
+            }
+            notes();
+            return status;
         }
     } catch (const talus::Interrupted &e) {
         // On several ranks, every rank stops together: rank 0 tells.

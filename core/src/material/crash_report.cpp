@@ -4,6 +4,7 @@
 #include <csignal>
 #include <cstdlib>
 #include <cstring>
+#include <string>
 #include <unistd.h>
 
 namespace talus::crash {
@@ -206,6 +207,19 @@ PluginCall::~PluginCall() {
 
 TaskScope::TaskScope(const Task *task) noexcept : saved_(t_task) { t_task = task; }
 TaskScope::~TaskScope() { t_task = saved_; }
+
+std::string current_task() {
+    const Task *t = t_task;
+    if (!t || !t->material) return {};
+    std::string s = std::string("material '") + t->material + "'";
+    if (t->group_names && t->group) s += std::string(", group '") + t->group_names[*t->group] + "'";
+    if (t->ids && t->count > 0) {
+        s += ", particles " + std::to_string(t->ids[0]);
+        if (t->ids[t->count - 1] != t->ids[0]) s += ".." + std::to_string(t->ids[t->count - 1]);
+    }
+    s += t->step > 0 ? ", in step " + std::to_string(t->step) : std::string(", initial state");
+    return s;
+}
 
 void install_handlers() {
     // An alternate stack, so that a plugin's stack overflow can still be

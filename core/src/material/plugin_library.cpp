@@ -116,11 +116,16 @@ void PluginLibrary::host_log(void *context, std::int32_t level, const char *mess
         }
         if (n > kPluginLogShown) return;
         const std::string text = message ? std::string(message, strnlen(message, 4096)) : "";
+        // Where the solver is: a message of a batch's point says "point 3",
+        // which means nothing to a user without the group and particles.
+        const std::string task = crash::current_task();
         std::string line =
-            fmt::format("{}: plugin {}: {}", level == TALUS_LOG_WARNING ? "warning" : "note",
-                        lib->name_.empty() ? lib->path_.string() : lib->name_, text);
+            fmt::format("{}: plugin {}{}: {}", level == TALUS_LOG_WARNING ? "warning" : "note",
+                        lib->name_.empty() ? lib->path_.string() : lib->name_,
+                        task.empty() ? std::string() : " (" + task + ")", text);
         if (n == kPluginLogShown)
-            line += fmt::format(" (further messages of this plugin are counted, not shown)");
+            line += fmt::format(" (further messages of this plugin are counted; the count comes "
+                                "at the end)");
         const std::lock_guard lock(g_log_sink_mutex);
         if (g_log_sink)
             g_log_sink(line);
@@ -165,6 +170,13 @@ std::size_t PluginLibrary::fp_changes() const {
 std::size_t PluginLibrary::log_messages() const {
     const std::lock_guard lock(log_mutex_);
     return log_count_;
+}
+
+std::string PluginLibrary::log_note() const {
+    const std::size_t more = log_suppressed();
+    if (more == 0) return {};
+    return fmt::format("talus: note: plugin {} sent {} message(s) more than the {} shown",
+                       name_.empty() ? path_.string() : name_, more, kPluginLogShown);
 }
 
 std::size_t PluginLibrary::log_suppressed() const {

@@ -10,6 +10,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <string>
 
 namespace talus::crash {
 
@@ -60,6 +61,11 @@ class TaskScope {
 // The exit status after a plugin called exit() inside a call (EX_SOFTWARE
 // of sysexits.h: the software failed, not the input).
 inline constexpr int kExitInPluginCall = 70;
+
+// What the current thread's plugin call is doing, for a plugin's log
+// message: "material 'soil', group 'slope', particles 0..63, in step 12";
+// empty outside a solver's task. Not for a signal handler (it allocates).
+std::string current_task();
 
 // Installs the fatal-signal handlers and the guard against exit() inside a
 // plugin call (process-wide; once is enough).

@@ -182,6 +182,9 @@ class PluginLibrary : public std::enable_shared_from_this<PluginLibrary> {
     // many of them were not shown (past the first kPluginLogShown).
     std::size_t log_messages() const;
     std::size_t log_suppressed() const;
+    // "talus: note: plugin x sent 380 message(s) more than the 20 shown",
+    // or empty: for the end of a command.
+    std::string log_note() const;
 
     // The first change a call into the library made to the calling
     // thread's floating-point environment ("create of model 'x': rounding
