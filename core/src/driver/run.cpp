@@ -1368,6 +1368,10 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     }
     if (opt.progress && opt.progress_tty) std::fprintf(stderr, "\n");
     if (opt.progress) steps.report(log);
+    if (const Diagnostics dg = sim.diagnostics(); dg.removed > 0) // collective
+        log << fmt::format("talus: note: {} particle(s) left the grid and were removed; {} "
+                           "remain\n",
+                           dg.removed, dg.particles);
     if (!opt.final_field.empty())
         write_final_particles(dir / "final_particles.csv", sim, opt.final_field, final_offsets);
     return summary(sim, comm, elapsed(), particle_steps - particle_steps_before, out.outputs(),

@@ -279,7 +279,10 @@ double Simulation::Impl::time_step() {
                                ? (max_speed > 0.0 ? sc.solver.cfl * sc.cell / max_speed
                                                   : std::numeric_limits<double>::infinity())
                                : critical_dt();
-    if (!sc.solver.dt) return dt_crit;
+    // No particle left to limit the step (every one left the grid or was
+    // removed): the last step's length, so that the outputs due go on
+    // coming one per output time rather than one for the rest of the stage.
+    if (!sc.solver.dt) return std::isfinite(dt_crit) || !(last_dt > 0.0) ? dt_crit : last_dt;
     const double dt = *sc.solver.dt;
     // Above h / max(c + |v|) (a Courant number of 1) the explicit step is
     // unstable and the result is noise: refuse. Between the cfl margin and

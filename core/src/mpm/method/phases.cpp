@@ -189,7 +189,15 @@ void Simulation::Impl::step_ended(const StepEnd &mine) {
         const Leaving out = collect_leaving(sets, domain, sc.dim, remove, group_names);
         order.invalidate(); // indices moved
         const long left = comm.sum(out.count);
-        if (left > 0 && remove) removed += left;
+        if (left > 0 && remove) {
+            if (removed == 0)
+                warnings.push_back(fmt::format(
+                    "step {} (t = {:.6g} s): {} particle(s) left the grid and were removed "
+                    "(solver.leaving_grid: remove); the column 'removed' of diagnostics.csv "
+                    "counts them from here on",
+                    step + 1, step_end, left));
+            removed += left;
+        }
         if (left > 0 && !remove) {
             // The first rank's list with them (each lists at most ten).
             std::string list;
