@@ -1343,9 +1343,14 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
                 last_progress = elapsed();
                 const double rate = static_cast<double>(particle_steps - particle_steps_before) /
                                     std::max(last_progress, 1e-9);
-                const double eta =
-                    last_progress * (end - sim.time()) / std::max(sim.time() - time_before, 1e-300);
-                print_progress(opt, sim, end, last_progress, rate, eta);
+                // The end as it now stands: a stage that came to rest
+                // early (until) moved every later stage, and the end, back.
+                double projected = sim.stage_end();
+                for (std::size_t k = sim.stage() + 1; k < sim.stages().size(); ++k)
+                    projected += sim.stages()[k].duration;
+                const double eta = last_progress * (projected - sim.time()) /
+                                   std::max(sim.time() - time_before, 1e-300);
+                print_progress(opt, sim, projected, last_progress, rate, eta);
             }
         }
         // The end of every stage is in the output.
