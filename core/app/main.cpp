@@ -33,6 +33,9 @@ int report_current() {
     } catch (const std::filesystem::filesystem_error &e) {
         // Permissions, a missing folder, a full disk: the user's to fix.
         std::cerr << fmt::format("talus: error: {}\n", e.what());
+    } catch (const std::bad_alloc &) {
+        std::cerr << "talus: error: out of memory (an allocation failed; the machine's memory, "
+                     "ulimit -v or a job's limit)\n";
     } catch (const std::exception &e) {
         std::cerr << "talus: internal error: " << e.what() << '\n';
     }

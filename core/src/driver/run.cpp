@@ -203,7 +203,16 @@ Prepared prepare_run(Scenario &sc, const SolverOptions &solver) {
             "every step waits at its barriers for threads that share a core, so the run is slower "
             "than with {} (the results are the same at any count)",
             solver.threads, Simulation::processors(), Simulation::processors()));
-    out.sim = std::make_unique<Simulation>(sc, solver);
+    try {
+        out.sim = std::make_unique<Simulation>(sc, solver);
+    } catch (const std::bad_alloc &) {
+        // Past a limit the estimate does not see (ulimit -v, a cgroup, the
+        // other processes): say what and how much instead of bad_alloc.
+        throw Error(fmt::format("{}: out of memory while making the grid and the particles "
+                                "(about {} needed; {} available to the machine)",
+                                sc.file, bytes_text(plan.estimate.bytes),
+                                bytes_text(plan.memory_available)));
+    }
     const Simulation &sim = *out.sim;
     plan.particles = sim.particle_count();
     out.probe_particles = probe_particles(sc, sim);
@@ -874,7 +883,14 @@ class Checkpoints {
         c.plugins = plugins_;
         c.output.next_due = next_due;
         c.output.particle_steps = particle_steps;
-        c.state = sim.snapshot();
+        try {
+            c.state = sim.snapshot();
+        } catch (const std::bad_alloc &) {
+            // (particle_count() is collective: not here, on one rank.)
+            throw Error(fmt::format("{}: out of memory while copying the particles for a "
+                                    "checkpoint (a copy of every particle column)",
+                                    dir_.string()));
+        }
         const fs::path file = dir_ / fmt::format("checkpoint_{:010d}.h5", sim.steps());
         together(comm, [&] {
             if (comm.rank() != 0) write_checkpoint(rank_checkpoint_file(file, comm.rank()), c);
