@@ -1258,6 +1258,7 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     const fs::path dir = opt.output_dir.empty() ? default_output_dir(sc.file) : opt.output_dir;
     std::optional<FolderLock> lock;
     take_folder(lock, dir, opt, comm);
+    if (lock && !lock->warning().empty()) log << lock->warning() << '\n';
     std::vector<long> final_offsets;
     together(comm, [&] { final_offsets = refuse_before_work(sc, opt, dir, log); });
     Prepared prep = prepare_or_restore(sc, opt, log);

@@ -186,6 +186,17 @@ FolderLock::FolderLock(const fs::path &dir, bool make) : dir_(dir), file_(dir / 
                     "{}: another run is writing into this folder: {}\nthe run was not started; "
                     "wait for that one to end, or choose another --output-dir",
                     dir.string(), holder));
+            // A file system without flock (Lustre mounted without it, NFS
+            // without its lock daemon): the run goes on, unguarded, and
+            // says so.
+            if (err == ENOLCK || err == ENOSYS || err == EOPNOTSUPP) {
+                warning_ = fmt::format("talus: warning: {}: the file system cannot lock files "
+                                       "({}): a second run into this folder would not be "
+                                       "refused; start one run per folder",
+                                       dir.string(), std::strerror(err));
+                ::unlink(file_.c_str());
+                return;
+            }
             throw Error(fmt::format("{}: cannot lock the folder's lock file ({}), so two runs "
                                     "into it could not be told apart",
                                     file_.string(), std::strerror(err)));

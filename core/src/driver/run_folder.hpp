@@ -40,9 +40,13 @@ class FolderLock {
     FolderLock &operator=(const FolderLock &) = delete;
 
     static constexpr const char *kFileName = ".talus.lock";
+    // Where the file system cannot lock files: what the run should say
+    // (it goes on without the lock); else empty.
+    const std::string &warning() const { return warning_; }
 
   private:
     std::filesystem::path dir_, file_;
+    std::string warning_;
     int fd_ = -1;
     bool made_ = false;
 };

@@ -257,8 +257,14 @@ void refuse_dependent(const Stage &st, const std::vector<int> &free, const yaml:
             st.conditions[static_cast<std::size_t>(order[static_cast<std::size_t>(r)])];
         m.row(r) << k.a.transpose(), k.b.transpose();
     }
+    // Strain and stress weights differ in scale (a compliance-like stress
+    // weight is 1e-9 /Pa): each block scaled to its largest entry, which
+    // leaves the rank as it is, before a threshold relative to 1.
+    for (const int block : {0, 6}) {
+        const double big = m.middleCols(block, 6).cwiseAbs().maxCoeff();
+        if (big > 0.0) m.middleCols(block, 6) /= big;
+    }
     for (int rows = 1; rows <= 6; ++rows) {
-        // Relative to the largest coefficient: the user's weights are O(1).
         Eigen::FullPivLU<Eigen::MatrixXd> lu(m.topRows(rows));
         lu.setThreshold(1e-10);
         if (lu.rank() == rows) continue;

@@ -1038,9 +1038,12 @@ Scenario read_scenario(const yaml::Node &root, PluginRegistry &registry) {
     const bool constants_ok = errors.attempt([&] { read_constants(root, s); });
     std::unordered_set<std::string> failed_materials;
     bool parts_ok = false;
-    if (plugins_ok)
-        errors.attempt([&] { read_materials(root, registry, s, errors, failed_materials); });
-    if (plugins_ok && grid_ok && constants_ok)
+    // The block itself (missing, not a mapping, empty): no group can name
+    // a material then.
+    const bool materials_ok = plugins_ok && errors.attempt([&] {
+        read_materials(root, registry, s, errors, failed_materials);
+    });
+    if (materials_ok && grid_ok && constants_ok)
         errors.attempt([&] {
             parts_ok = read_groups(root, s, errors, failed_materials) && failed_materials.empty();
         });

@@ -18,9 +18,10 @@ std::string mark_text(const std::string &file, const YAML::Mark &m) {
     return fmt::format("{}:{}:{}", file, m.line + 1, m.column + 1);
 }
 
-// For messages only: a key of any length is shown clipped.
+// A node's path; the user's names in it are data (a material's name goes
+// to its plugin), clipped only where a message shows it.
 std::string child_path(const std::string &parent, std::string_view key) {
-    return parent.empty() ? clip(key) : parent + "." + clip(key);
+    return parent.empty() ? std::string(key) : parent + "." + std::string(key);
 }
 
 } // namespace
@@ -37,7 +38,7 @@ Node::Node(YAML::Node node, std::string file, std::string path, YAML::Mark fallb
 std::string Node::where() const { return mark_text(file_, mark_); }
 
 void Node::fail(const std::string &what) const {
-    const std::string key = path_.empty() ? std::string() : fmt::format(" '{}'", path_);
+    const std::string key = path_.empty() ? std::string() : fmt::format(" '{}'", clip(path_));
     throw Error(fmt::format("{}: error:{} {}", where(), key, what));
 }
 
@@ -54,8 +55,8 @@ Node Node::require(std::string_view key) const {
     expect_map();
     const YAML::Node child = node_[std::string(key)];
     if (!child.IsDefined())
-        throw Error(
-            fmt::format("{}: error: missing required key '{}'", where(), child_path(path_, key)));
+        throw Error(fmt::format("{}: error: missing required key '{}'", where(),
+                                clip(child_path(path_, key))));
     return Node(child, file_, child_path(path_, key), mark_);
 }
 
@@ -83,7 +84,7 @@ std::vector<std::pair<std::string, Node>> Node::entries() const {
         if (!kv.first.IsScalar() || kv.first.Scalar().empty())
             throw Error(fmt::format("{}: error: {}a key must be a plain name, got {}",
                                     mark_text(file_, kv.first.Mark()),
-                                    path_.empty() ? "" : fmt::format("in '{}': ", path_),
+                                    path_.empty() ? "" : fmt::format("in '{}': ", clip(path_)),
                                     kv.first.IsNull() || kv.first.IsScalar() ? "an empty key"
                                     : kv.first.IsMap()                       ? "a mapping"
                                                                              : "a sequence"));
@@ -95,7 +96,7 @@ std::vector<std::pair<std::string, Node>> Node::entries() const {
         if (!fresh)
             throw Error(
                 fmt::format("{}: error: '{}' is given twice (first at {}); keys must be unique",
-                            mark_text(file_, kv.first.Mark()), child_path(path_, key),
+                            mark_text(file_, kv.first.Mark()), clip(child_path(path_, key)),
                             mark_text(file_, first->second)));
         out.emplace_back(key, Node(kv.second, file_, child_path(path_, key), mark_));
     }
@@ -122,7 +123,8 @@ void Node::allow_keys(std::span<const std::string_view> allowed) const {
             guess.empty() ? fmt::format("allowed keys here: {}", list)
                           : fmt::format("did you mean '{}'? (allowed keys here: {})", guess, list);
         throw Error(fmt::format("{}: error: unknown key '{}'; {}",
-                                mark_text(file_, kv.first.Mark()), child_path(path_, key), hint));
+                                mark_text(file_, kv.first.Mark()), clip(child_path(path_, key)),
+                                hint));
     }
 }
 

@@ -574,7 +574,9 @@ Checkpoint read_checkpoint(const fs::path &file) {
     c.talus_version = h5.read_attr_string(root, "talus_version");
     c.abi_major = h5.read_attr<int>(root, "abi_major");
     c.abi_minor = h5.read_attr<int>(root, "abi_minor");
-    if (version >= 4) c.run_id = h5.read_attr_string(root, "run_id");
+    // Format 4 files of the first builds to write it carry no run id: a run
+    // of no name, checked by its digests (run_folder.hpp).
+    if (h5.has(root, "run_id")) c.run_id = h5.read_attr_string(root, "run_id");
     {
         Handle sc = h5.open_group(root, "scenario");
         c.scenario_path = h5.read_attr_string(sc.get(), "path");

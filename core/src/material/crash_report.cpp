@@ -176,14 +176,13 @@ void on_fatal(int sig) {
         put(". The plugin is at fault, not the input: run `talus plugin check` on it, or "
             "debug it under gdb.\n");
     } else if (const char *model = g_last_model.load(std::memory_order_relaxed)) {
-        put(" in talus, outside any plugin call. The likely cause is a plugin that wrote past "
-            "its arrays and corrupted memory Talus used later; the last plugin call to return "
-            "was model '");
+        put(" in talus, outside any plugin call. This may be a bug in Talus (please report it "
+            "with the scenario), or the doing of a plugin that wrote past its arrays into memory "
+            "Talus used later: the last plugin call to return was model '");
         put(model);
         put("' from ");
         put(g_last_library.load(std::memory_order_relaxed));
-        put(": run `talus plugin check` on it (its buffers check). If it passes, this is a bug "
-            "in Talus; please report it with the scenario.\n");
+        put("; `talus plugin check` on it (its buffers check) tells which.\n");
     } else {
         put(" in talus itself, outside any plugin call. This is a bug in Talus; please report "
             "it with the scenario.\n");
@@ -201,8 +200,12 @@ PluginCall::PluginCall(const char *model, const char *library) noexcept
 
 PluginCall::~PluginCall() {
     t_call = saved_;
-    g_last_model.store(model_, std::memory_order_relaxed);
-    g_last_library.store(library_, std::memory_order_relaxed);
+    // Stored only when it changes: every batch of every thread would
+    // otherwise write the one cache line the threads then pass around.
+    if (g_last_model.load(std::memory_order_relaxed) != model_)
+        g_last_model.store(model_, std::memory_order_relaxed);
+    if (g_last_library.load(std::memory_order_relaxed) != library_)
+        g_last_library.store(library_, std::memory_order_relaxed);
 }
 
 TaskScope::TaskScope(const Task *task) noexcept : saved_(t_task) { t_task = task; }

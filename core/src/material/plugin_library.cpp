@@ -252,7 +252,9 @@ std::shared_ptr<PluginLibrary> PluginLibrary::open(const fs::path &file) {
     talus_error err = fresh_error();
     std::int32_t status = TALUS_STATUS_FAILED;
     try {
-        const crash::PluginCall call("(its entry point)", file.c_str());
+        // The library's own path, which outlives the call (a crash report
+        // may name it later).
+        const crash::PluginCall call("(its entry point)", lib->path_.c_str());
         const FpGuard fp(*lib, nullptr, "its entry point");
         status = entry(&host, &desc, &err);
     } catch (...) {

@@ -210,6 +210,9 @@ class ModelChecks {
     ModelChecks(const Model &m, const CheckOptions &o, Sink &s) : model_(m), opt_(o), sink_(s) {}
 
     void run() {
+        // Each model's own: the checks of a library's models run in turn.
+        overruns.clear();
+        fp_changes_before_ = model_.library().fp_changes();
         if (!create()) return;
         if (!build_states()) return;
         zero_increment();
@@ -233,13 +236,21 @@ class ModelChecks {
         // The host puts back what a call changes of the floating-point
         // environment and the library records it (fp_environment.hpp):
         // loading, create, update and destroy are all seen.
-        const std::string fp = model_.library().fp_change();
-        report("fp environment", fp.empty(),
-               fp.empty() ? "rounding mode, flush-to-zero and trap masks left as they were by "
-                            "loading, create, update and destroy"
-                          : fmt::format("{} (and {} call(s) in all); a plugin must leave the "
-                                        "floating-point environment as it found it",
-                                        fp, model_.library().fp_changes()));
+        // This model's calls, or the library's load (which is every model's).
+        const PluginLibrary &lib = model_.library();
+        const std::string fp = lib.fp_change();
+        const bool at_load = fp.rfind("loading", 0) == 0 || fp.rfind("its entry point", 0) == 0;
+        const bool changed = lib.fp_changes() > fp_changes_before_ || (!fp.empty() && at_load);
+        report("fp environment", !changed,
+               !changed ? "rounding mode, flush-to-zero and trap masks left as they were by "
+                          "loading, create, update and destroy"
+                        : fmt::format("{}{} ({} call(s) of the library in all); a plugin must "
+                                      "leave the floating-point environment as it found it",
+                                      lib.fp_changes() > fp_changes_before_ && !at_load
+                                          ? "this model's calls changed it; the library's first "
+                                            "change: "
+                                          : "",
+                                      fp, lib.fp_changes()));
     }
 
   private:
@@ -247,6 +258,7 @@ class ModelChecks {
     const CheckOptions &opt_;
     Sink &sink_;
     std::unique_ptr<MaterialInstance> instance_;
+    std::size_t fp_changes_before_ = 0;
     std::vector<Pt> states_;       // loaded states (start of the checks' increments)
     std::vector<Vec6> directions_; // loading direction that produced each state
     double stress_scale_ = 1.0;    // rho c^2 * strain_scale: stress of one increment

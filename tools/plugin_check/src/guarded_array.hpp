@@ -77,6 +77,11 @@ class Overruns {
         const std::lock_guard lock(m_);
         return first_;
     }
+    void clear() {
+        const std::lock_guard lock(m_);
+        first_.clear();
+        count_ = 0;
+    }
     std::size_t count() const {
         const std::lock_guard lock(m_);
         return count_;

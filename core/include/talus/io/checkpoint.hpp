@@ -50,7 +50,8 @@ struct Checkpoint {
     std::string scenario_path, scenario_text, scenario_sha256;
     // The run's own name (32 hex digits, made at its start and kept by its
     // restarts; also in its folder's provenance.json), so that a restart
-    // can tell its own folder from another run's. Empty before format 4.
+    // can tell its own folder from another run's. Empty where the file has
+    // none (formats 1 to 3, and format 4 as first written).
     std::string run_id;
     std::vector<PluginIdentity> plugins;
     OutputProgress output;
