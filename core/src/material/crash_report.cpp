@@ -143,6 +143,9 @@ void put_call(const PluginCall *c) {
 // plugin's status, 0 included, and the run's output cut short. Registered
 // with on_exit, so it runs in the thread that called exit(), where t_call
 // says whether that thread was inside a plugin; an exit elsewhere goes on.
+// Registered early, it runs after every exit handler registered later
+// (static destructors among them) and while other threads may still be in
+// the step: the state it writes is best effort, as after a crash.
 void on_exit_in_call(int status, void *) {
     const PluginCall *c = t_call;
     if (!c) return;
