@@ -2,6 +2,7 @@
 
 #include <talus/error.hpp>
 #include <talus/input/yaml_input.hpp>
+#include <talus/io/provenance.hpp>
 
 #include <fmt/format.h>
 
@@ -136,15 +137,6 @@ void refuse_foreign_folder(const fs::path &dir, const Checkpoint &c) {
 // ------------------------------------------------------ who writes now --
 
 namespace {
-
-std::string utc_now() {
-    const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-    std::tm tm{};
-    gmtime_r(&t, &tm);
-    char buf[32];
-    std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-    return buf;
-}
 
 // What the holder wrote into the lock file (it may not have yet).
 std::string holder_of(int fd) {

@@ -714,7 +714,11 @@ void read_materials(const yaml::Node &root, PluginRegistry &registry, Scenario &
     const yaml::Node mats = root.require("materials");
     mats.expect_map();
     const auto entries = mats.entries();
-    for (const auto &[name, m] : entries) {
+    // Named copies, not structured bindings: clang 14 (Debian 12) does not
+    // capture those in a lambda.
+    for (const auto &entry : entries) {
+        const std::string &name = entry.first;
+        const yaml::Node &m = entry.second;
         const bool ok = errors.attempt([&] {
             NamedMaterial nm;
             nm.name = name;
@@ -799,7 +803,9 @@ bool read_groups(const yaml::Node &root, Scenario &s, yaml::ErrorList &errors,
     groups.expect_map();
     const auto entries = groups.entries();
     bool all = true;
-    for (const auto &[name, group] : entries) {
+    for (const auto &entry : entries) {
+        const std::string &name = entry.first;
+        const yaml::Node &group = entry.second;
         const yaml::Node mat = group.is_map() ? group.get("material") : yaml::Node(group);
         if (mat.defined() && mat.is_scalar() && failed_materials.count(mat.as_string())) {
             all = false;

@@ -41,15 +41,6 @@ std::string file_sha256(const std::string &file) {
     return h.empty() ? "unreadable" : h;
 }
 
-std::string utc_now() {
-    const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-    std::tm tm{};
-    gmtime_r(&t, &tm);
-    char buf[32];
-    std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
-    return buf;
-}
-
 // The parameter's value as JSON.
 std::string json_value(const ParamInfo &p, const ParamValue &v) {
     switch (p.type) {
@@ -66,6 +57,15 @@ std::string json_value(const ParamInfo &p, const ParamValue &v) {
 }
 
 } // namespace
+
+std::string utc_now() {
+    const std::time_t t = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+    std::tm tm{};
+    gmtime_r(&t, &tm);
+    char buf[32];
+    std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
+    return buf;
+}
 
 namespace {
 // The input as an absolute path: the record must stay meaningful when read

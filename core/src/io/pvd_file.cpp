@@ -3,6 +3,8 @@
 #include <talus/error.hpp>
 #include <talus/io/output_file.hpp>
 
+#include "xml_text.hpp"
+
 #include <fmt/format.h>
 
 #include <cerrno>
@@ -21,20 +23,9 @@ constexpr std::string_view kHead = "<?xml version=\"1.0\"?>\n<VTKFile type=\"Col
                                    "  <Collection>\n";
 constexpr std::string_view kTail = "  </Collection>\n</VTKFile>\n";
 
-// Names are the run's own (particles_00012.vtu), but escaped as XML wants
-// all the same.
 std::string entry(double t, const std::string &name) {
-    std::string e = fmt::format("    <DataSet timestep=\"{:.17g}\" part=\"0\" file=\"", t);
-    for (const char c : name) {
-        switch (c) {
-        case '&': e += "&amp;"; break;
-        case '<': e += "&lt;"; break;
-        case '>': e += "&gt;"; break;
-        case '"': e += "&quot;"; break;
-        default: e += c;
-        }
-    }
-    return e + "\"/>\n";
+    return fmt::format("    <DataSet timestep=\"{:.17g}\" part=\"0\" file=\"{}\"/>\n", t,
+                       xml_escape(name));
 }
 
 } // namespace

@@ -1,5 +1,7 @@
 #include <talus/io/vtk_output.hpp>
 
+#include "xml_text.hpp"
+
 #include <talus/io/output_file.hpp>
 #include <talus/sdk/voigt.hpp>
 
@@ -39,21 +41,6 @@ std::string string_array(std::string_view name, const std::vector<std::string> &
     return fmt::format("        <Array type=\"String\" Name=\"{}\" NumberOfTuples=\"{}\" "
                        "format=\"ascii\">\n          {}\n        </Array>\n",
                        name, values.size(), body);
-}
-
-// Names are the user's, written into XML: escape what XML reserves.
-std::string xml_escape(std::string_view s) {
-    std::string out;
-    for (char c : s) {
-        switch (c) {
-        case '&': out += "&amp;"; break;
-        case '<': out += "&lt;"; break;
-        case '>': out += "&gt;"; break;
-        case '"': out += "&quot;"; break;
-        default: out += c;
-        }
-    }
-    return out;
 }
 
 // The point data arrays of a particle file, in order: the 13 fixed ones,

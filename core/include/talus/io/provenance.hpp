@@ -28,6 +28,9 @@ struct Provenance {
     std::string run_id;
 };
 
+// The time now, UTC, as the records give it ("2026-12-03T07:52:10Z").
+std::string utc_now();
+
 // As a JSON document (provenance.json beside a run's output).
 std::string provenance_json(const Provenance &p);
 // As '#' comment lines, for the head of a CSV file (the driver's output).
