@@ -174,17 +174,33 @@ std::vector<double> Node::as_doubles() const {
 
 Node load_string(const std::string &text, const std::string &name) {
     try {
-        // Every document, so that a second one (after a '---') is refused
-        // instead of silently ignored, as YAML::Load would.
-        const std::vector<YAML::Node> docs = YAML::LoadAll(text);
-        if (docs.empty() || !docs[0].IsDefined() || docs[0].IsNull())
+        YAML::Node root = YAML::Load(text);
+        if (!root.IsDefined() || root.IsNull())
             throw Error(fmt::format("{}: error: the file is empty", name));
-        if (docs.size() > 1)
-            throw Error(fmt::format("{}: error: a second YAML document (after a '---' line): a "
-                                    "file holds one document, and the rest would be ignored; "
-                                    "remove the '---' or split the file",
-                                    mark_text(name, docs[1].Mark())));
-        return Node(docs[0], name, "");
+        // A second document would be ignored: refused. Found by its marker,
+        // '---' at the start of a line after the first document's content
+        // (where YAML always starts a new one), not by YAML::LoadAll, which
+        // loops for ever on some malformed input (yaml-cpp 0.7).
+        bool content = false;
+        std::size_t line = 0;
+        for (std::size_t at = 0; at < text.size(); ++line) {
+            const std::size_t eol = std::min(text.find('\n', at), text.size());
+            const std::string_view l(text.data() + at, eol - at);
+            const bool marker = l.substr(0, 3) == "---" &&
+                                (l.size() == 3 || l[3] == ' ' || l[3] == '\t' || l[3] == '\r');
+            if (marker && content)
+                throw Error(fmt::format("{}:{}:1: error: a second YAML document (after a '---' "
+                                        "line): a file holds one document, and the rest would be "
+                                        "ignored; remove the '---' or split the file",
+                                        name, line + 1));
+            const std::size_t first = l.find_first_not_of(" \t\r");
+            if (marker ? l.find_first_not_of(" \t\r", 3) != std::string_view::npos &&
+                             l[l.find_first_not_of(" \t\r", 3)] != '#'
+                       : first != std::string_view::npos && l[first] != '#' && l[first] != '%')
+                content = true;
+            at = eol + 1;
+        }
+        return Node(root, name, "");
     } catch (const YAML::ParserException &e) {
         throw Error(fmt::format("{}: error: YAML syntax: {}", mark_text(name, e.mark), e.msg));
     }
