@@ -24,12 +24,23 @@
 
 namespace {
 
+// A message that does not yet say it is an error (a located input error
+// does: "file:line:col: error: ...") gets the prefix every other error and
+// warning of the command has, so that a script or a reader finds each by
+// "error:".
+std::string as_error(const std::string &message) {
+    const std::string first = message.substr(0, message.find('\n'));
+    if (first.rfind("error:", 0) == 0 || first.find(": error:") != std::string::npos)
+        return message;
+    return "talus: error: " + message;
+}
+
 // The exception being handled, as one message on stderr; the exit status.
 int report_current() {
     try {
         throw;
     } catch (const talus::Error &e) {
-        std::cerr << e.what() << '\n';
+        std::cerr << as_error(e.what()) << '\n';
     } catch (const std::filesystem::filesystem_error &e) {
         // Permissions, a missing folder, a full disk: the user's to fix.
         std::cerr << fmt::format("talus: error: {}\n", e.what());
@@ -129,7 +140,7 @@ int main(int argc, char **argv) {
         if (comm.rank() == 0) std::cerr << e.what() << '\n';
         return 128 + e.signal();
     } catch (const talus::AgreedError &e) {
-        if (comm.rank() == 0) std::cerr << e.what() << '\n';
+        if (comm.rank() == 0) std::cerr << as_error(e.what()) << '\n';
         return 1;
     } catch (const std::exception &e) {
         if (!comm.distributed()) return report_current();

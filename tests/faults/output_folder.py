@@ -12,6 +12,10 @@ CASE is one of
   checkpoints_link  checkpoints/ a symbolic link to a folder holding
                     checkpoints: a new run, --force or not, leaves them there
                     and refuses; to an empty folder it goes in and writes there
+  restart_again     a restart keeps the checkpoint it started from, however
+                    many it writes after it (keep: 2), so the same command
+                    continues the run again, to the same files; its summary
+                    says which counts are of its own part
 """
 import glob
 import os
@@ -131,14 +135,17 @@ def busy_folder(exe, data, work):
     try:
         r = talus(exe, ["run", scenario, "--output-dir", folder, "--force"], log=True)
         assert r.returncode != 0, f"a second run went into a busy folder:\n{r.stderr}"
-        assert re.search(rf"another run is writing into this folder: talus, PID {first.pid} ",
-                         r.stderr), r.stderr
+        assert re.search(rf"^talus: error: .*another run is writing into this folder: talus, "
+                         rf"PID {first.pid} ", r.stderr, re.M), r.stderr
+        assert "choose another --output-dir" in r.stderr, r.stderr
         # A restart into it too.
         ck = os.path.join(work, "elsewhere")
         run_ok(exe, ["run", scenario, "--output-dir", ck])
         r = talus(exe, ["run", "--restart", last_checkpoint(ck), "--output-dir", folder],
                   log=True)
         assert r.returncode != 0 and f"PID {first.pid} " in r.stderr, r.stderr
+        # A restart has its run's folder only: no advice to go elsewhere.
+        assert "was not continued" in r.stderr and "--output-dir" not in r.stderr, r.stderr
     finally:
         first.send_signal(signal.SIGCONT)
     assert first.wait() == 0, open(os.path.join(work, "first.log")).read()
@@ -181,12 +188,63 @@ def checkpoints_link(exe, data, work):
     assert os.listdir(scratch), "the run's checkpoints are not in the linked folder"
 
 
+def outputs(folder):
+    """The run's output files by name (provenance.json records wall time)."""
+    out = {}
+    for f in sorted(os.listdir(folder)):
+        p = os.path.join(folder, f)
+        if os.path.isfile(p) and f != "provenance.json" and not f.startswith("."):
+            with open(p, "rb") as fh:
+                out[f] = fh.read()
+    return out
+
+
+def restart_again(exe, data, work):
+    folder = os.path.join(work, "run")
+    scenario = os.path.join(data, "checkpointed.yaml")
+    env = dict(os.environ, OMP_NUM_THREADS="1")
+    # Stopped once its first checkpoint is there, then killed: the run's
+    # folder holds one of step 4 or 8 of 18, so that a restart from it
+    # writes two or more (every 4 steps) and keep: 2 would prune it.
+    first = None
+    for attempt in range(10):
+        shutil.rmtree(folder, ignore_errors=True)
+        log = open(os.path.join(work, "first.log"), "w")
+        p = subprocess.Popen([exe, "run", scenario, "--output-dir", folder], env=env,
+                             stdout=log, stderr=log)
+        while p.poll() is None and not glob.glob(os.path.join(folder, "checkpoints", "*.h5")):
+            time.sleep(0.001)
+        p.send_signal(signal.SIGSTOP)
+        found = sorted(glob.glob(os.path.join(folder, "checkpoints", "checkpoint_*.h5")))
+        p.send_signal(signal.SIGKILL)
+        p.wait()
+        if found and int(re.search(r"_(\d+)\.h5$", found[0]).group(1)) <= 8:
+            first = found[0]
+            break
+    assert first, "no early checkpoint in 10 tries"
+    print(f"restarting from {os.path.basename(first)}")
+    results = []
+    for k in range(2):
+        r = talus(exe, ["run", "--restart", first], log=True)
+        assert r.returncode == 0, f"restart {k + 1}: exit {r.returncode}\n{r.stderr}"
+        assert os.path.exists(first), f"restart {k + 1} removed the checkpoint it started from"
+        kept = glob.glob(os.path.join(folder, "checkpoints", "checkpoint_*.h5"))
+        assert len(kept) == 3, f"keep: 2 and the start one, not {sorted(kept)}"
+        step = int(re.search(r"_(\d+)\.h5$", first).group(1))
+        assert re.search(rf"continued from step {step} to step \d+ .* output\(s\) and \d+ "
+                         r"checkpoint\(s\) written by this part, 5 output\(s\) of the run",
+                         r.stderr), r.stderr
+        results.append(outputs(folder))
+    assert results[0] == results[1], "the second restart wrote other files"
+    assert len(results[0]) >= 4, sorted(results[0])
+
+
 def main():
     case, exe, data, work = sys.argv[1:5]
     shutil.rmtree(work, ignore_errors=True)
     os.makedirs(work)
     {"foreign_restart": foreign_restart, "busy_folder": busy_folder,
-     "checkpoints_link": checkpoints_link}[case](exe, data, work)
+     "checkpoints_link": checkpoints_link, "restart_again": restart_again}[case](exe, data, work)
     print("ok")
 
 

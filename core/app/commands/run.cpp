@@ -87,7 +87,7 @@ class Run final : public Command {
 
 Scenario Run::read(Context &ctx, std::optional<Checkpoint> &checkpoint, std::string &text) {
     if (scenario_file_.empty() && restart_file_.empty())
-        throw Error("talus run: give a scenario (SCENARIO.yaml) or --restart CHECKPOINT.h5");
+        throw Error("`talus run` needs a scenario (SCENARIO.yaml) or --restart CHECKPOINT.h5");
     // A restart reads the scenario the checkpoint stores, as its run read it
     // (the file may have changed since), under the file's name, so that
     // relative paths resolve as they did.
@@ -155,12 +155,24 @@ int Run::run(Context &ctx) {
     std::ostream silent(nullptr); // the other ranks' log: rank 0 tells it
     const RunSummary rs = run_scenario(sc, ro, rank0 ? std::cerr : silent);
     if (!rank0) return 0;
-    std::cerr << fmt::format(
-        "talus: {} steps to t = {:.6g} s, {} particles, {:.1f} s wall, {:.3g} particle-steps/s; "
-        "{} output(s){} in {}\n",
-        rs.steps, rs.time, rs.particles, rs.seconds, rs.particle_steps_per_second, rs.outputs,
-        rs.checkpoints > 0 ? fmt::format(" and {} checkpoint(s)", rs.checkpoints) : "",
-        rs.output_dir.string());
+    const std::string checkpoints =
+        rs.checkpoints > 0 ? fmt::format(" and {} checkpoint(s)", rs.checkpoints) : "";
+    // A restart's own part apart from the run's totals, each count with
+    // the span it is of.
+    if (rs.restarted)
+        std::cerr << fmt::format(
+            "talus: continued from step {} to step {} (t = {:.6g} s), {} particles, {:.1f} s wall, "
+            "{:.3g} particle-steps/s; {} output(s){} written by this part, {} output(s) of the "
+            "run in {}\n",
+            rs.first_step, rs.steps, rs.time, rs.particles, rs.seconds,
+            rs.particle_steps_per_second, rs.outputs - rs.outputs_before, checkpoints, rs.outputs,
+            rs.output_dir.string());
+    else
+        std::cerr << fmt::format("talus: {} steps to t = {:.6g} s, {} particles, {:.1f} s wall, "
+                                 "{:.3g} particle-steps/s; {} output(s){} in {}\n",
+                                 rs.steps, rs.time, rs.particles, rs.seconds,
+                                 rs.particle_steps_per_second, rs.outputs, checkpoints,
+                                 rs.output_dir.string());
     if (!plot_.empty()) {
         plot_final_particles(rs.output_dir / "final_particles.csv", plot_,
                              fmt::format("{}: {} at t = {:.4g} s",

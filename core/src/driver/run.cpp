@@ -857,9 +857,13 @@ std::string scenario_text_of(const Scenario &sc) {
 // Writes checkpoints/checkpoint_<step>.h5 and keeps the newest `keep`.
 class Checkpoints {
   public:
-    Checkpoints(const fs::path &dir, const Scenario &sc, std::string text, const RunIdentity &id)
+    // `spared_step`: the step of the checkpoint a restart continues from,
+    // kept however many come after it, so that the command the user gave
+    // can be given again; -1 for none.
+    Checkpoints(const fs::path &dir, const Scenario &sc, std::string text, const RunIdentity &id,
+                long spared_step)
         : dir_(dir / "checkpoints"), sc_(sc), text_(std::move(text)), id_(id),
-          plugins_(plugin_identities(sc)) {}
+          plugins_(plugin_identities(sc)), spared_step_(spared_step) {}
 
     bool possible() const { return !text_.empty(); }
 
@@ -907,8 +911,9 @@ class Checkpoints {
 
   private:
     // The newest `keep` complete checkpoints stay (rank 0's file there),
-    // with their ranks' files; older ones go, rank 0's file first, so that
-    // an interrupted removal never leaves one that looks complete.
+    // with their ranks' files, and the one this restart started from; older
+    // ones go, rank 0's file first, so that an interrupted removal never
+    // leaves one that looks complete.
     void prune() {
         std::map<long, std::vector<fs::path>> by_step; // rank 0's file first in each
         std::vector<long> complete;
@@ -937,6 +942,7 @@ class Checkpoints {
         const long oldest_kept = complete[complete.size() - keep];
         for (const auto &[step, files] : by_step) {
             if (step >= oldest_kept) break;
+            if (step == spared_step_) continue;
             for (const fs::path &f : files)
                 if (!fs::remove(f, ec) && ec)
                     throw Error(fmt::format("{}: cannot remove an old checkpoint: {}", f.string(),
@@ -948,6 +954,7 @@ class Checkpoints {
     std::string text_;
     RunIdentity id_;
     std::vector<PluginIdentity> plugins_;
+    long spared_step_ = -1;
     int written_ = 0;
 };
 
@@ -1009,7 +1016,8 @@ void take_folder(std::optional<FolderLock> &lock, const fs::path &dir, const Run
                                     dir.string()));
         if (fs::exists(dir, ec) && !fs::is_directory(dir, ec))
             throw Error(fmt::format("{}: exists and is not a directory", dir.string()));
-        if (comm.rank() == 0) lock.emplace(dir, !opt.restart);
+        if (comm.rank() == 0)
+            lock.emplace(dir, opt.restart ? FolderLock::For::restart : FolderLock::For::new_run);
     });
 }
 
@@ -1277,7 +1285,7 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
                   opt.restart ? &opt.restart->output : nullptr);
     std::optional<Checkpoints> made;
     together(comm, [&] {
-        made.emplace(dir, sc, text, id);
+        made.emplace(dir, sc, text, id, opt.restart ? opt.restart->state.step : -1L);
         if (!made->possible() && (sc.checkpoint.every || sc.checkpoint.steps || sc.checkpoint.wall))
             throw Error(fmt::format("{}: cannot read the scenario's text, which every checkpoint "
                                     "stores",
@@ -1302,6 +1310,8 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     // The rate is of this process's steps.
     const long particle_steps_before = particle_steps;
     const double time_before = sim.time();
+    const long steps_before = sim.steps();
+    const int outputs_before = out.outputs();
     const double every = sc.output.every > 0.0 ? sc.output.every : end;
     // Output k is due at k * every; it is written after the first step that
     // reaches that time (the file and the CSV rows carry the actual time),
@@ -1396,8 +1406,12 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
                            dg.removed, dg.particles);
     if (!opt.final_field.empty())
         write_final_particles(dir / "final_particles.csv", sim, opt.final_field, final_offsets);
-    return summary(sim, comm, elapsed(), particle_steps - particle_steps_before, out.outputs(),
-                   checkpoints.written(), dir);
+    RunSummary rs = summary(sim, comm, elapsed(), particle_steps - particle_steps_before,
+                            out.outputs(), checkpoints.written(), dir);
+    rs.restarted = opt.restart != nullptr;
+    rs.first_step = steps_before;
+    rs.outputs_before = outputs_before;
+    return rs;
 }
 
 } // namespace talus

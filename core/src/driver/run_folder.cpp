@@ -150,9 +150,9 @@ std::string holder_of(int fd) {
 
 } // namespace
 
-FolderLock::FolderLock(const fs::path &dir, bool make) : dir_(dir), file_(dir / kFileName) {
+FolderLock::FolderLock(const fs::path &dir, For purpose) : dir_(dir), file_(dir / kFileName) {
     std::error_code ec;
-    if (make && !fs::exists(dir, ec)) {
+    if (purpose == For::new_run && !fs::exists(dir, ec)) {
         made_ = fs::create_directories(dir, ec);
         if (ec && !fs::is_directory(dir))
             throw Error(
@@ -173,11 +173,16 @@ FolderLock::FolderLock(const fs::path &dir, bool make) : dir_(dir), file_(dir / 
             const std::string holder = err == EWOULDBLOCK ? holder_of(fd_) : std::string();
             ::close(fd_);
             fd_ = -1;
+            // A restart has no other folder to go to: its run's files are
+            // in this one.
             if (err == EWOULDBLOCK)
                 throw Error(fmt::format(
-                    "{}: another run is writing into this folder: {}\nthe run was not started; "
-                    "wait for that one to end, or choose another --output-dir",
-                    dir.string(), holder));
+                    "{}: another run is writing into this folder: {}\n{}", dir.string(), holder,
+                    purpose == For::new_run
+                        ? "the run was not started; wait for that one to end, or choose "
+                          "another --output-dir"
+                        : "the run was not continued; a restart continues in its own run's "
+                          "folder only: wait for the run writing there to end, or stop it"));
             // A file system without flock (Lustre mounted without it, NFS
             // without its lock daemon): the run goes on, unguarded, and
             // says so.

@@ -29,12 +29,13 @@ void refuse_foreign_folder(const std::filesystem::path &dir, const Checkpoint &c
 // The lock a run holds on its folder while it writes into it: an exclusive
 // flock(2) on `.talus.lock` in the folder, which the kernel lets go when
 // the process ends, however it ends; the file names the holder (PID, host,
-// start) for the run that is refused. Makes the folder where `make` is set
-// and removes it again, empty, if the run leaves nothing in it.
+// start) for the run that is refused. A new run makes the folder and
+// removes it again, empty, if it leaves nothing in it; a restart finds it.
 class FolderLock {
   public:
+    enum class For { new_run, restart };
     // Throws talus::Error naming the holder when another process holds it.
-    FolderLock(const std::filesystem::path &dir, bool make);
+    FolderLock(const std::filesystem::path &dir, For purpose);
     ~FolderLock();
     FolderLock(const FolderLock &) = delete;
     FolderLock &operator=(const FolderLock &) = delete;

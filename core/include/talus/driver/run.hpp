@@ -111,6 +111,9 @@ Prepared prepare_run(Scenario &scenario, const SolverOptions &solver);
 // The output folder a run of `scenario_file` would use by default.
 std::filesystem::path default_output_dir(const std::string &scenario_file);
 
+// What a run did. A restart continues a run: `steps` and `outputs` count
+// the whole run, `seconds`, the rate and `checkpoints` this process's part
+// (from step `first_step`, after `outputs_before` outputs).
 struct RunSummary {
     long steps = 0;
     double time = 0.0;
@@ -119,6 +122,9 @@ struct RunSummary {
     double particle_steps_per_second = 0.0;
     int outputs = 0;
     int checkpoints = 0;
+    bool restarted = false;
+    long first_step = 0;
+    int outputs_before = 0;
     int ranks = 1;
     std::filesystem::path output_dir;
 };
