@@ -14,6 +14,9 @@ CASE is one of
                   plugin's write past its arrays crashes the host later):
                   the report names the last plugin called as a possible
                   cause beside a bug in Talus
+  one_particle    a plugin that crashes, or calls exit(3), on one particle's
+                  input (id 10) in a batch of many: the report names that
+                  particle, found by running the batch's points alone
 """
 import glob
 import os
@@ -128,11 +131,32 @@ def crash_after(exe, fixtures, work):
                      re.S), r.stderr
 
 
+def one_particle(exe, fixtures, work):
+    for model, ends in (("crashes_on_one", r"ends in the same way: signal 11 \(SIGSEGV"),
+                        ("exits_on_one", r"ends the process \(exit status 3\)")):
+        for threads in ("1", "2"):
+            scenario = os.path.join(work, f"{model}.yaml")
+            with open(scenario, "w") as f:
+                f.write(SCENARIO.format(library="fixture_" + model, model=model))
+            r = subprocess.run([exe, "--plugin-path", fixtures, "run", scenario, "--threads",
+                                threads, "--output-dir", os.path.join(work, model + threads)],
+                               capture_output=True, text=True)
+            print(f"$ talus run {model}.yaml ({threads} thread(s))\n  exit {r.returncode}\n"
+                  f"  {r.stderr.strip()[-900:]}")
+            assert r.returncode != 0, r.stderr
+            assert re.search(r"talus: run alone, particle 10 \(group 'lower'\) " + ends +
+                             r".*; point [0-9]+ of the batch's [0-9]+.*: its input is what the "
+                             r"plugin fails on", r.stderr), r.stderr
+            assert glob.glob(os.path.join(work, model + threads, "failure_step*.vtu")), \
+                "no state written"
+
+
 def main():
     case, exe, fixtures, work = sys.argv[1:5]
     shutil.rmtree(work, ignore_errors=True)
     os.makedirs(work)
-    {"fp_environment": fp_environment, "exit": exits, "crash_after": crash_after}[case](exe, fixtures, work)
+    {"fp_environment": fp_environment, "exit": exits, "crash_after": crash_after,
+     "one_particle": one_particle}[case](exe, fixtures, work)
     print("ok")
 
 

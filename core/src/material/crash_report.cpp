@@ -1,10 +1,17 @@
 #include <talus/material/crash_report.hpp>
 
 #include <atomic>
+#include <cerrno>
 #include <csignal>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
+#include <stdio_ext.h>
 #include <string>
+#include <sys/mman.h>
+#include <sys/wait.h>
+#include <ucontext.h>
 #include <unistd.h>
 
 namespace talus::crash {
@@ -127,6 +134,153 @@ void put_call(const PluginCall *c) {
     }
 }
 
+// ---- The particle a crash is the doing of ----
+//
+// A batch's inputs are still as they were when the call began (a call
+// writes its outputs only), so each point can be run again alone; each in a
+// child process of its own (a copy of this one, which the crash or exit()
+// then ends, not this process), until one ends as the call did. _Fork, not
+// fork: no fork handlers run, so none can wait for a lock (malloc's) that
+// the crashed call may hold.
+
+volatile std::sig_atomic_t g_in_child = 0;
+const Task *g_alone_task = nullptr;
+std::size_t g_alone_k = 0;
+
+constexpr int kReturned = 97;         // a child's status after the call returned
+constexpr int kNoStack = 98;          // a child that could not map its stack
+constexpr unsigned kAloneSeconds = 5; // a point's call takes microseconds
+constexpr long kSearchSeconds = 30;   // the whole search
+constexpr std::size_t kAloneStack = std::size_t{16} << 20; // a Fortran UMAT's arrays
+
+void alone_entry() {
+    g_alone_task->run_alone(g_alone_task->alone_context, g_alone_k);
+    ::_exit(kReturned);
+}
+
+[[noreturn]] void run_alone_child(const Task *t, std::size_t k) {
+    g_in_child = 1;
+    // A crash ends the child by its signal, for the parent to see; a call
+    // that hangs (on a lock another thread held at the fork) is ended by
+    // SIGALRM.
+    struct sigaction dfl {};
+    dfl.sa_handler = SIG_DFL;
+    sigemptyset(&dfl.sa_mask);
+    sigset_t unblock;
+    sigemptyset(&unblock);
+    for (int sig : {SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT, SIGALRM}) {
+        ::sigaction(sig, &dfl, nullptr);
+        sigaddset(&unblock, sig);
+    }
+    ::sigprocmask(SIG_UNBLOCK, &unblock, nullptr);
+    // Output the parent buffered is the parent's: an exit() in the child
+    // must not write it a second time.
+    __fpurge(stdout);
+    __fpurge(stderr);
+    ::alarm(kAloneSeconds);
+    // A stack of its own: the crashed thread may be on the small signal
+    // stack (install_handlers), too small for a model's call.
+    void *stack = ::mmap(nullptr, kAloneStack, PROT_READ | PROT_WRITE,
+                         MAP_PRIVATE | MAP_ANONYMOUS | MAP_STACK, -1, 0);
+    if (stack == MAP_FAILED) ::_exit(kNoStack);
+    g_alone_task = t;
+    g_alone_k = k;
+    static ucontext_t here, there;
+    ::getcontext(&there);
+    there.uc_stack.ss_sp = stack;
+    there.uc_stack.ss_size = kAloneStack;
+    there.uc_link = &here;
+    ::makecontext(&there, alone_entry, 0);
+    ::swapcontext(&here, &there);
+    ::_exit(kReturned);
+}
+
+double seconds_now() {
+    timespec ts{};
+    ::clock_gettime(CLOCK_MONOTONIC, &ts);
+    return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+
+// Runs the task's points alone, in order, and reports the first whose call
+// does not return: "talus: run alone, particle 10 (group 'lump') crashes
+// in the same way (signal 11)". Ends with a newline.
+void search_for_the_particle() {
+    const Task *t = t_task;
+    if (!t || !t->run_alone || !t->ids || t->count == 0) return;
+    const double start = seconds_now();
+    for (std::size_t k = 0; k < t->count; ++k) {
+        if (seconds_now() - start > kSearchSeconds) {
+            put_who();
+            put("the search for the particle stopped after ");
+            put_int(static_cast<long long>(k));
+            put(" of the batch's ");
+            put_int(static_cast<long long>(t->count));
+            put(" points (time limit)\n");
+            flush();
+            return;
+        }
+        const pid_t pid = ::_Fork();
+        if (pid < 0) {
+            put_who();
+            put("the batch could not be searched for the particle: fork failed\n");
+            flush();
+            return;
+        }
+        if (pid == 0) run_alone_child(t, k);
+        int st = 0;
+        while (::waitpid(pid, &st, 0) < 0 && errno == EINTR) {
+        }
+        if (WIFEXITED(st) && WEXITSTATUS(st) == kReturned) continue;
+        put_who();
+        if (WIFEXITED(st) && WEXITSTATUS(st) == kNoStack) {
+            put("the batch could not be searched for the particle: no memory for a stack\n");
+            flush();
+            return;
+        }
+        if (WIFSIGNALED(st) && WTERMSIG(st) == SIGALRM) {
+            put("the search for the particle stopped: particle ");
+            put_int(t->ids[k]);
+            put(" run alone did not return in ");
+            put_int(kAloneSeconds);
+            put(" s\n");
+            flush();
+            return;
+        }
+        put("run alone, particle ");
+        put_int(t->ids[k]);
+        if (t->group_names && t->group) {
+            put(" (group '");
+            put(t->group_names[t->group[k]]);
+            put("')");
+        }
+        if (WIFSIGNALED(st)) {
+            put(" ends in the same way: signal ");
+            put_int(WTERMSIG(st));
+            put(" (");
+            put(signal_text(WTERMSIG(st)));
+            put(")");
+        } else {
+            put(" ends the process (exit status ");
+            put_int(WIFEXITED(st) ? WEXITSTATUS(st) : -1);
+            put(")");
+        }
+        put("; point ");
+        put_int(static_cast<long long>(k + 1));
+        put(" of the batch's ");
+        put_int(static_cast<long long>(t->count));
+        if (k > 0) put(", the points before it return");
+        put(": its input is what the plugin fails on\n");
+        flush();
+        return;
+    }
+    put_who();
+    put("run alone, each of the batch's ");
+    put_int(static_cast<long long>(t->count));
+    put(" points returns: the fault is not one particle's input (the plugin's own data, or "
+        "memory written before this call)\n");
+    flush();
+}
+
 // The one last action, under a time limit, then the end with `status`.
 [[noreturn]] void last_action_and_end(int status) {
     if (LastAction a = g_action.load()) {
@@ -147,6 +301,7 @@ void put_call(const PluginCall *c) {
 // (static destructors among them) and while other threads may still be in
 // the step: the state it writes is best effort, as after a crash.
 void on_exit_in_call(int status, void *) {
+    if (g_in_child) ::_exit(kExitInPluginCall); // a point run alone (above)
     const PluginCall *c = t_call;
     if (!c) return;
     if (g_entered.fetch_add(1) > 0) ::_exit(kExitInPluginCall);
@@ -158,6 +313,7 @@ void on_exit_in_call(int status, void *) {
     put(". A plugin must fail the call (TALUS_STATUS_FAILED with a message), never end the "
         "process: the run stops here.\n");
     flush();
+    search_for_the_particle();
     last_action_and_end(kExitInPluginCall);
 }
 
@@ -178,6 +334,8 @@ void on_fatal(int sig) {
         put_call(c);
         put(". The plugin is at fault, not the input: run `talus plugin check` on it, or "
             "debug it under gdb.\n");
+        flush();
+        search_for_the_particle();
     } else if (const char *model = g_last_model.load(std::memory_order_relaxed)) {
         put(" in talus, outside any plugin call. This may be a bug in Talus (please report it "
             "with the scenario), or the doing of a plugin that wrote past its arrays into memory "

@@ -29,6 +29,33 @@ MaterialInstance::Result MaterialInstance::start(talus_batch &b) const noexcept 
     return call(b, true);
 }
 
+void MaterialInstance::run_alone(const void *alone_call, std::size_t k) noexcept {
+    const auto &a = *static_cast<const AloneCall *>(alone_call);
+    const talus_batch &b = *a.batch;
+    const std::size_t ns = b.state_size;
+    // Each array at point k: the batch's layout (material_abi.h), n x width.
+    const auto at = [k](auto *p, std::size_t width) { return p ? p + width * k : p; };
+    talus_batch one = b;
+    one.n_points = 1;
+    one.strain_increment = at(b.strain_increment, 6);
+    one.F_start = at(b.F_start, 9);
+    one.F_end = at(b.F_end, 9);
+    one.density = at(b.density, 1);
+    one.stress_start = at(b.stress_start, 6);
+    one.state_start = at(b.state_start, ns);
+    one.stress_end = at(b.stress_end, 6);
+    one.state_end = at(b.state_end, ns);
+    one.wave_speed = at(b.wave_speed, 1);
+    one.tangent = at(b.tangent, 36);
+    one.point_id = at(b.point_id, 1);
+    one.characteristic_length = at(b.characteristic_length, 1);
+    one.rotation = at(b.rotation, 9);
+    const Model &m = *a.instance->model_;
+    const auto fn = a.setup && m.init_state_ ? m.init_state_ : m.raw().update;
+    talus_error err = fresh_error();
+    fn(a.instance->instance_, &one, &err);
+}
+
 namespace {
 
 // The output screens below, in one version per instruction set, the

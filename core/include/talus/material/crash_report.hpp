@@ -28,6 +28,13 @@ struct Task {
     // The batch's particle ids, ids[0 .. count).
     const std::int64_t *ids = nullptr;
     std::size_t count = 0;
+    // Calls point k of the batch alone (the plugin on the point's inputs,
+    // which a call never writes). After a crash or an exit() inside the
+    // call, the report runs it for each point in a child process of its
+    // own, to name the particle whose input does it; null: the report
+    // names the batch.
+    void (*run_alone)(const void *context, std::size_t k) = nullptr;
+    const void *alone_context = nullptr;
 };
 
 // Marks the current thread as inside a call to `model` of `library` (and

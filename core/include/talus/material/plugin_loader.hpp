@@ -270,6 +270,19 @@ class MaterialInstance {
     // model's init_state when it has one, else update (material_abi.h).
     Result start(talus_batch &batch) const noexcept;
 
+    // A batch given to update or start, for the crash report's search of
+    // the particle a crash is the doing of (crash::Task::run_alone).
+    struct AloneCall {
+        const MaterialInstance *instance;
+        const talus_batch *batch;
+        bool setup;
+    };
+    // Point k of that batch alone: the plugin's function on a one-point
+    // batch of the same inputs, with no lock, guard or screen. Only for a
+    // child process the crash report forked, which has one thread and ends
+    // after the call.
+    static void run_alone(const void *alone_call, std::size_t k) noexcept;
+
   private:
     friend class Model;
     MaterialInstance() = default;

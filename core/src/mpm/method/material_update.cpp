@@ -188,12 +188,15 @@ bool MaterialUpdate::advance(ParticleSet &s, std::size_t set, std::size_t begin,
     b.characteristic_length = scr.length.data();
     b.rotation = in.rotation;
     // Whom to blame if the plugin crashes (crash_report.hpp).
+    const MaterialInstance::AloneCall alone{s.instance, &b, step == 0};
     const crash::Task task{.material = names_.material[set],
                            .step = step,
                            .group_names = names_.group.data(),
                            .group = &s.group[begin],
                            .ids = &s.id[begin],
-                           .count = count};
+                           .count = count,
+                           .run_alone = &MaterialInstance::run_alone,
+                           .alone_context = &alone};
     const crash::TaskScope blame(&task);
     // Step 0 is the set-up call (the plugin's init_state when it has one).
     MaterialInstance::Result r = step == 0 ? s.instance->start(b) : s.instance->update(b);
