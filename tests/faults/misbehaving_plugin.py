@@ -17,13 +17,19 @@ CASE is one of
   one_particle    a plugin that crashes, or calls exit(3), on one particle's
                   input (id 10) in a batch of many: the report names that
                   particle, found by running the batch's points alone
+  hangs           a plugin call that never returns, and the run is sent
+                  SIGINT: it says at once that it stops when the step ends,
+                  10 s later that the step has not and which call it waits
+                  for; a second SIGINT ends it
 """
 import glob
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
+import time
 
 # Two elastic disks that collide, every arithmetic path of the step
 # (the fixtures' elastic update is the same code in all of them).
@@ -151,12 +157,52 @@ def one_particle(exe, fixtures, work):
                 "no state written"
 
 
+def hangs(exe, fixtures, work):
+    scenario = os.path.join(work, "hangs.yaml")
+    with open(scenario, "w") as f:
+        f.write(SCENARIO.format(library="fixture_hangs", model="hangs"))
+    err = os.path.join(work, "hangs.log")
+    with open(err, "w") as log:
+        p = subprocess.Popen([exe, "--plugin-path", fixtures, "run", scenario, "--threads", "2",
+                              "--output-dir", os.path.join(work, "hangs")], stderr=log)
+    try:
+        said = signalled(p, err)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+    print(said)
+
+
+def signalled(p, err):
+    # The call hangs from 1 ms on, the second step; the first output row is
+    # written before the first step.
+    time.sleep(1.0)
+    assert p.poll() is None, open(err).read()
+    p.send_signal(signal.SIGINT)
+    time.sleep(0.5)
+    said = open(err).read()
+    assert "talus: SIGINT: the run stops when this step ends, after writing a checkpoint; a " \
+           "second signal stops it at once" in said, said
+    assert "has not ended" not in said, said
+    time.sleep(11.0)  # the second word comes 10 s after the signal
+    said = open(err).read()
+    assert p.poll() is None, said
+    assert re.search(r"talus: the step has not ended 10 s after SIGINT\n(talus: a thread has "
+                     r"been inside one call of model 'hangs' from [^ ]*fixture_hangs\.so "
+                     r"\(material 'elastic'\) since then\n)+talus: a plugin call that does not "
+                     r"return cannot be stopped", said), said
+    p.send_signal(signal.SIGINT)
+    assert p.wait(timeout=30) == -signal.SIGINT, "a second SIGINT did not end the run"
+    return said
+
+
 def main():
     case, exe, fixtures, work = sys.argv[1:5]
     shutil.rmtree(work, ignore_errors=True)
     os.makedirs(work)
     {"fp_environment": fp_environment, "exit": exits, "crash_after": crash_after,
-     "one_particle": one_particle}[case](exe, fixtures, work)
+     "one_particle": one_particle, "hangs": hangs}[case](exe, fixtures, work)
     print("ok")
 
 

@@ -2,6 +2,7 @@
 
 #include "governed_steps.hpp"
 #include "run_folder.hpp"
+#include "stop_signals.hpp"
 
 #include <talus/driver/point_driver.hpp>
 #include <talus/input/yaml_input.hpp>
@@ -816,35 +817,6 @@ void write_final_particles(const fs::path &file, const Simulation &sim, const st
 
 namespace {
 
-// SIGTERM and SIGINT (a scheduler's kill, Ctrl-C) only raise a flag: the
-// run finishes its step, writes a checkpoint and stops. A second signal
-// ends the process at once (SA_RESETHAND).
-volatile std::sig_atomic_t g_stop_signal = 0;
-extern "C" void on_stop_signal(int sig) { g_stop_signal = sig; }
-
-class StopSignals {
-  public:
-    StopSignals() {
-        g_stop_signal = 0;
-        struct sigaction sa {};
-        sa.sa_handler = on_stop_signal;
-        sa.sa_flags = SA_RESETHAND;
-        sigemptyset(&sa.sa_mask);
-        ::sigaction(SIGTERM, &sa, &old_term_);
-        ::sigaction(SIGINT, &sa, &old_int_);
-    }
-    ~StopSignals() {
-        ::sigaction(SIGTERM, &old_term_, nullptr);
-        ::sigaction(SIGINT, &old_int_, nullptr);
-    }
-    StopSignals(const StopSignals &) = delete;
-    StopSignals &operator=(const StopSignals &) = delete;
-
-  private:
-    struct sigaction old_term_ {
-    }, old_int_{};
-};
-
 // The scenario's text, for the checkpoints; empty if it cannot be read.
 std::string scenario_text_of(const Scenario &sc) {
     try {
@@ -1148,11 +1120,13 @@ void not_at_rest(const StageSpec &stage, const Simulation &sim, const RunOutput 
 // that continues the run, in the Interrupted the run ends with.
 void stop_if_signalled(const Comm &comm, Checkpoints &checkpoints, Simulation &sim, RunOutput &out,
                        long next_k, long particle_steps) {
-    int sig = g_stop_signal;
+    int sig = stop_signal();
     // A launcher signals every rank, not at the same step: all stop at the
     // first step's end where any has been.
     if (comm.distributed()) sig = static_cast<int>(comm.max(static_cast<double>(sig)));
     if (!sig) return;
+    stop_signal_seen();
+
     const char *name = sig == SIGTERM ? "SIGTERM" : sig == SIGINT ? "SIGINT" : "a signal";
     if (!checkpoints.possible()) // the same on every rank
         throw Interrupted(fmt::format("talus: stopped by {} at step {} (t = {:.6g} s); no "
@@ -1292,7 +1266,7 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
                                     sc.file));
     });
     Checkpoints &checkpoints = *made;
-    const StopSignals stop_signals;
+    const StopSignals stop_signals(comm.rank() == 0 && opt.progress);
     crash::set_last_action(write_state_after_crash, &out);
     const ClearLastAction clear_on_exit;
 

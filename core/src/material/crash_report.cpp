@@ -1,5 +1,6 @@
 #include <talus/material/crash_report.hpp>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <csignal>
@@ -31,6 +32,30 @@ std::atomic<int> g_rank{-1}, g_ranks{0};
 // call may be its doing (a write past its arrays corrupts what the host
 // uses next). Relaxed stores: a hint for the report, no order needed.
 std::atomic<const char *> g_last_model{nullptr}, g_last_library{nullptr};
+
+// The per-thread slots of mark_calls(): padded to a cache line each, so
+// that a thread's stores per call never touch another's line. Threads past
+// kSlots are not counted.
+constexpr int kSlots = 256;
+struct alignas(64) Slot {
+    std::atomic<const char *> model{nullptr}, library{nullptr}, material{nullptr};
+    std::atomic<unsigned long> calls{0}; // begun
+    std::atomic<int> depth{0};           // > 0: inside a call
+    unsigned long marked = 0;            // calls at mark_calls()
+};
+Slot g_slots[kSlots];
+std::atomic<int> g_slots_taken{0};
+thread_local Slot *t_slot = nullptr;
+thread_local bool t_slot_taken = false;
+
+Slot *my_slot() noexcept {
+    if (!t_slot_taken) {
+        t_slot_taken = true;
+        const int i = g_slots_taken.fetch_add(1, std::memory_order_relaxed);
+        if (i < kSlots) t_slot = &g_slots[i];
+    }
+    return t_slot;
+}
 
 // Async-signal-safe output: the message is built in a static buffer and
 // written by write(2) at once (flush), so that the reports of several
@@ -357,10 +382,20 @@ void on_fatal(int sig) {
 PluginCall::PluginCall(const char *model, const char *library) noexcept
     : model_(model), library_(library), saved_(t_call) {
     t_call = this;
+    if (Slot *s = my_slot()) {
+        constexpr auto relaxed = std::memory_order_relaxed;
+        s->model.store(model, relaxed);
+        s->library.store(library, relaxed);
+        s->material.store(t_task ? t_task->material : nullptr, relaxed);
+        s->calls.store(s->calls.load(relaxed) + 1, relaxed);
+        s->depth.store(s->depth.load(relaxed) + 1, relaxed);
+    }
 }
 
 PluginCall::~PluginCall() {
     t_call = saved_;
+    if (Slot *s = t_slot)
+        s->depth.store(s->depth.load(std::memory_order_relaxed) - 1, std::memory_order_relaxed);
     // Stored only when it changes: every batch of every thread would
     // otherwise write the one cache line the threads then pass around.
     if (g_last_model.load(std::memory_order_relaxed) != model_)
@@ -383,6 +418,35 @@ std::string current_task() {
     }
     s += t->step > 0 ? ", in step " + std::to_string(t->step) : std::string(", initial state");
     return s;
+}
+
+void mark_calls() noexcept {
+    const int n = std::min(g_slots_taken.load(), kSlots);
+    for (int i = 0; i < n; ++i)
+        g_slots[i].marked = g_slots[i].calls.load(std::memory_order_relaxed);
+}
+
+int report_calls_since_mark(const char *lead) noexcept {
+    const int n = std::min(g_slots_taken.load(), kSlots);
+    int stuck = 0;
+    for (int i = 0; i < n; ++i) {
+        const Slot &s = g_slots[i];
+        if (s.depth.load() <= 0 || s.calls.load() != s.marked) continue;
+        ++stuck;
+        put(lead);
+        put("talus: a thread has been inside one call of model '");
+        put(s.model.load());
+        put("' from ");
+        put(s.library.load());
+        if (const char *m = s.material.load()) {
+            put(" (material '");
+            put(m);
+            put("')");
+        }
+        put(" since then\n");
+        flush();
+    }
+    return stuck;
 }
 
 void install_handlers() {

@@ -74,6 +74,19 @@ inline constexpr int kExitInPluginCall = 70;
 // empty outside a solver's task. Not for a signal handler (it allocates).
 std::string current_task();
 
+// ---- Calls that do not return ----
+// Each thread's plugin calls are counted where a signal handler can read
+// them (a slot per thread, written by its own thread only), so that a run
+// asked to stop can tell the user when a call it waits for does not end.
+
+// Async-signal-safe: notes how many calls each thread has begun.
+void mark_calls() noexcept;
+// Async-signal-safe: writes to stderr a line for each thread still inside
+// the call it was in at mark_calls(), "talus: a thread has been inside one
+// call of model 'm' from lib (material 'x') since then", each line after
+// `lead`; returns how many.
+int report_calls_since_mark(const char *lead) noexcept;
+
 // Installs the fatal-signal handlers and the guard against exit() inside a
 // plugin call (process-wide; once is enough).
 void install_handlers();
