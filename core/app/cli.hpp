@@ -9,6 +9,7 @@
 
 #include <talus/material/plugin_loader.hpp>
 #include <talus/mpm/comm.hpp>
+#include <talus/verbosity.hpp>
 
 #include <CLI/CLI.hpp>
 
@@ -44,6 +45,7 @@ struct Context {
     char **&argv;
     std::optional<MpiSession> &mpi;
     Comm &comm;
+    Verbosity verbosity = Verbosity::normal; // --quiet, --verbose
 };
 
 // One command: its options are added to the command line when it is made;

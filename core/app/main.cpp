@@ -62,10 +62,22 @@ int main(int argc, char **argv) {
                          std::string(talus::host_name()) + fmt::format(" (material ABI {}.{})",
                                                                        TALUS_ABI_VERSION_MAJOR,
                                                                        TALUS_ABI_VERSION_MINOR));
+    // The options of `talus` itself may also follow the command's
+    // (`talus run x.yaml --quiet`).
+    app.fallthrough();
     std::vector<std::string> plugin_path;
     app.add_option("--plugin-path", plugin_path,
                    "Directory searched for plugins before TALUS_PLUGIN_PATH (repeatable)")
         ->type_name("DIR");
+    bool quiet = false, verbose = false;
+    auto *quiet_flag =
+        app.add_flag("-q,--quiet", quiet,
+                     "Say errors and warnings only (run, validate, point): no plan, progress, "
+                     "notes or summary");
+    app.add_flag("-v,--verbose", verbose,
+                 "Say more (run, validate, point): the plugins loaded, every output and "
+                 "checkpoint written, every message of a plugin")
+        ->excludes(quiet_flag);
     std::vector<std::unique_ptr<talus::cli::Command>> commands;
     commands.push_back(talus::cli::run_command(app));
     commands.push_back(talus::cli::validate_command(app));
@@ -108,6 +120,11 @@ int main(int argc, char **argv) {
         std::vector<std::filesystem::path> dirs(plugin_path.begin(), plugin_path.end());
         talus::PluginRegistry registry(dirs);
         talus::cli::Context ctx{registry, argc, argv, mpi, comm};
+        ctx.verbosity = quiet     ? talus::Verbosity::quiet
+                        : verbose ? talus::Verbosity::verbose
+                                  : talus::Verbosity::normal;
+        if (verbose) talus::set_plugin_log_policy(SIZE_MAX, true);
+        if (quiet) talus::set_plugin_log_policy(talus::kPluginLogShown, false);
         for (const auto &c : commands) {
             if (!c->parsed()) continue;
             // A plugin that crashes inside this process is named (run,
@@ -121,6 +138,8 @@ int main(int argc, char **argv) {
             // How many of a plugin's log messages were not shown, once the
             // command is done (or failed).
             auto notes = [&] {
+                // (Said under --quiet too: it counts warnings the run was
+                // told would be counted.)
                 if (comm.rank() != 0) return;
                 for (const auto &lib : registry.libraries())
                     if (const std::string n = lib->log_note(); !n.empty()) std::cerr << n << '\n';

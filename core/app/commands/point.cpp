@@ -122,8 +122,9 @@ int Point::run(Context &ctx) {
             std::cerr << "talus point: " << report;
             return 3;
         }
-        std::cerr << fmt::format("talus point: compare: every value within tolerance of {}\n",
-                                 pc.compare->file);
+        if (ctx.verbosity != Verbosity::quiet)
+            std::cerr << fmt::format("talus point: compare: every value within tolerance of {}\n",
+                                     pc.compare->file);
     }
     return 0;
 }

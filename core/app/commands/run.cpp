@@ -143,8 +143,9 @@ int Run::run(Context &ctx) {
     ro.output_dir = output_dir_;
     ro.force = force_;
     ro.allow_large = allow_large_;
-    ro.progress = rank0;
-    ro.progress_tty = rank0 && isatty(2) != 0;
+    ro.verbosity = ctx.verbosity;
+    ro.progress = rank0 && ctx.verbosity != Verbosity::quiet;
+    ro.progress_tty = ro.progress && isatty(2) != 0;
     ro.progress_interval = progress_every_;
     ro.solver.threads = threads_;
     ro.adapt_threads = threads_ == 0;
@@ -155,11 +156,12 @@ int Run::run(Context &ctx) {
     std::ostream silent(nullptr); // the other ranks' log: rank 0 tells it
     const RunSummary rs = run_scenario(sc, ro, rank0 ? std::cerr : silent);
     if (!rank0) return 0;
+    const bool say = ctx.verbosity != Verbosity::quiet;
     const std::string checkpoints =
         rs.checkpoints > 0 ? fmt::format(" and {} checkpoint(s)", rs.checkpoints) : "";
     // A restart's own part apart from the run's totals, each count with
     // the span it is of.
-    if (rs.restarted)
+    if (say && rs.restarted)
         std::cerr << fmt::format(
             "talus: continued from step {} to step {} (t = {:.6g} s), {} particles, {:.1f} s wall, "
             "{:.3g} particle-steps/s; {} output(s){} written by this part, {} output(s) of the "
@@ -167,7 +169,7 @@ int Run::run(Context &ctx) {
             rs.first_step, rs.steps, rs.time, rs.particles, rs.seconds,
             rs.particle_steps_per_second, rs.outputs - rs.outputs_before, checkpoints, rs.outputs,
             rs.output_dir.string());
-    else
+    else if (say)
         std::cerr << fmt::format("talus: {} steps to t = {:.6g} s, {} particles, {:.1f} s wall, "
                                  "{:.3g} particle-steps/s; {} output(s){} in {}\n",
                                  rs.steps, rs.time, rs.particles, rs.seconds,
@@ -178,7 +180,7 @@ int Run::run(Context &ctx) {
                              fmt::format("{}: {} at t = {:.4g} s",
                                          std::filesystem::path(scenario_file_).filename().string(),
                                          plot_field_, rs.time));
-        std::cerr << fmt::format("talus: drew {}\n", plot_);
+        if (say) std::cerr << fmt::format("talus: drew {}\n", plot_);
     }
     return 0;
 }

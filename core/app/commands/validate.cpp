@@ -5,6 +5,7 @@
 #include <talus/driver/run.hpp>
 #include <talus/input/scenario_yaml.hpp>
 #include <talus/input/yaml_input.hpp>
+#include <talus/io/checkpoint.hpp>
 
 #include <fmt/format.h>
 
@@ -29,10 +30,17 @@ class Validate final : public Command {
         Scenario sc = read_scenario(root, ctx.registry);
         const Prepared prep = prepare_run(sc, {});
         const RunPlan &plan = prep.plan;
+        const bool quiet = ctx.verbosity == Verbosity::quiet;
+        // Quiet: the warnings, and the exit status.
         for (const std::string &n : plan.notes)
-            std::cerr << n << '\n';
+            if (!quiet || n.substr(0, n.find('\n')).find("warning:") != std::string::npos)
+                std::cerr << n << '\n';
         for (const std::string &w : plan.over_limits)
             std::cerr << w << " (`talus run` refuses this unless --allow-large)\n";
+        if (ctx.verbosity == Verbosity::verbose)
+            for (const PluginIdentity &p : plugin_identities(sc))
+                std::cerr << describe(p) << '\n';
+        if (quiet) return 0;
         std::cout << fmt::format(
             "{}: valid ({}D, {} material(s), {} group(s)): {} particles, {:.3g} grid nodes, about "
             "{:.3g} MB; about {:.3g} steps of {:.3g} s{}\n",

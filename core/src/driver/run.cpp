@@ -945,9 +945,13 @@ class Checkpoints {
     throw AgreedError(e.what() + where + gather_text(comm, write_replay_case(sim, dir)));
 }
 
-void write_or_stop(RunOutput &out, const Simulation &sim) {
+// `said`: where a verbose run notes each output (null: nowhere).
+void write_or_stop(RunOutput &out, const Simulation &sim, std::ostream *said) {
     try {
         out.write();
+        if (said)
+            *said << fmt::format("talus: output {} at t = {:.6g} s (step {})\n", out.outputs() - 1,
+                                 sim.time(), sim.steps());
     } catch (const Error &e) {
         const std::string m = fmt::format("{}\nthe run stopped at step {} (t = {:.6g} s)", e.what(),
                                           sim.steps(), sim.time());
@@ -1214,8 +1218,11 @@ Prepared prepare_or_restore(Scenario &sc, const RunOptions &opt, std::ostream &l
     } else {
         prep = prepare_run(sc, opt.solver);
     }
+    // A note of the plan is said unless quiet; a warning always.
     for (const std::string &n : prep.plan.notes)
-        log << n << '\n';
+        if (opt.verbosity != Verbosity::quiet ||
+            n.substr(0, n.find('\n')).find("warning:") != std::string::npos)
+            log << n << '\n';
     if (!prep.plan.over_limits.empty()) {
         std::string all;
         for (const std::string &w : prep.plan.over_limits)
@@ -1237,6 +1244,11 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     // ranks stop at the same point.
     const Comm &comm = opt.solver.comm;
     const bool root = comm.rank() == 0;
+    // Notes go where warnings go, unless quiet; a verbose run's details
+    // (each output and checkpoint) only when verbose.
+    std::ostream nowhere(nullptr);
+    std::ostream &notes = opt.verbosity == Verbosity::quiet ? nowhere : log;
+    std::ostream *said = opt.verbosity == Verbosity::verbose ? &log : nullptr;
     const fs::path dir = opt.output_dir.empty() ? default_output_dir(sc.file) : opt.output_dir;
     std::optional<FolderLock> lock;
     take_folder(lock, dir, opt, comm);
@@ -1277,10 +1289,15 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
     double last_progress = -1.0;
     long particle_steps = opt.restart ? opt.restart->output.particle_steps : 0;
     std::size_t warnings_shown = 0;
-    if (!opt.restart) out.write();
+    if (!opt.restart) write_or_stop(out, sim, nullptr);
     const double end = sc.end_time;
     const std::size_t particles = sim.particle_count(); // collective: on every rank
     log_start(opt, sim, comm, particles, prep.plan, end, log);
+    if (said) {
+        for (const PluginIdentity &p : plugin_identities(sc))
+            *said << describe(p) << '\n';
+        if (!opt.restart) *said << "talus: output 0 at t = 0 s (step 0)\n";
+    }
     // The rate is of this process's steps.
     const long particle_steps_before = particle_steps;
     const double time_before = sim.time();
@@ -1329,15 +1346,19 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
             // Times within a millionth of a step of a target count as
             // reaching it.
             if (sim.time() >= due() - 1e-9 * sim.last_dt()) {
-                write_or_stop(out, sim);
+                write_or_stop(out, sim, said);
                 // One file per output time reached, even if a long step
                 // passed several of them.
                 next_k = next_multiple(sim.time() + 1e-9 * sim.last_dt(), every, next_k);
             }
             stop_if_signalled(comm, checkpoints, sim, out, next_k, particle_steps);
             if (checkpoint_due()) {
-                checkpoint_or_stop(checkpoints, sim, out, next_k, particle_steps);
+                const fs::path file =
+                    checkpoint_or_stop(checkpoints, sim, out, next_k, particle_steps);
                 last_ck_wall = elapsed();
+                if (said)
+                    *said << fmt::format("talus: checkpoint {} at t = {:.6g} s (step {})\n",
+                                         file.string(), sim.time(), sim.steps());
             }
             const double interval = opt.progress_tty ? 0.5 : opt.progress_interval;
             if (opt.progress && elapsed() - last_progress > interval) {
@@ -1355,10 +1376,10 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
             }
         }
         // The end of every stage is in the output.
-        if (!out.written_now()) write_or_stop(out, sim);
+        if (!out.written_now()) write_or_stop(out, sim, said);
         const bool met = why == StageEnd::quiescent;
         out.stage_row(why, met);
-        if (!sc.stages.empty()) log_stage_end(opt, stage, sim, met, log);
+        if (!sc.stages.empty()) log_stage_end(opt, stage, sim, met, notes);
         if (stage.until && !met) not_at_rest(stage, sim, out, comm, log);
         if (sim.stage() + 1 == sim.stages().size()) break;
         try {
@@ -1369,15 +1390,15 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
                                "'{}' to its groups and materials possibly part made",
                                sim.steps(), sim.stages()[sim.stage()].name));
         }
-        log << fmt::format("talus: stage '{}' begins at t = {:.6g} s\n",
-                           sim.stages()[sim.stage()].name, sim.time());
+        notes << fmt::format("talus: stage '{}' begins at t = {:.6g} s\n",
+                             sim.stages()[sim.stage()].name, sim.time());
     }
     if (opt.progress && opt.progress_tty) std::fprintf(stderr, "\n");
     if (opt.progress) steps.report(log);
     if (const Diagnostics dg = sim.diagnostics(); dg.removed > 0) // collective
-        log << fmt::format("talus: note: {} particle(s) left the grid and were removed; {} "
-                           "remain\n",
-                           dg.removed, dg.particles);
+        notes << fmt::format("talus: note: {} particle(s) left the grid and were removed; {} "
+                             "remain\n",
+                             dg.removed, dg.particles);
     if (!opt.final_field.empty())
         write_final_particles(dir / "final_particles.csv", sim, opt.final_field, final_offsets);
     RunSummary rs = summary(sim, comm, elapsed(), particle_steps - particle_steps_before,

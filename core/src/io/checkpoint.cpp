@@ -405,6 +405,12 @@ Snapshot read_state(const H5 &h5, hid_t root) {
 
 } // namespace
 
+std::string describe(const PluginIdentity &p) {
+    return fmt::format("talus: material '{}': model '{}' {} from {} (library {}, SHA-256 {})",
+                       p.material, p.qualified_id, p.model_version, p.path, p.library_version,
+                       p.sha256);
+}
+
 std::vector<PluginIdentity> plugin_identities(const Scenario &sc) {
     std::vector<PluginIdentity> out;
     for (const NamedMaterial &m : sc.materials) {

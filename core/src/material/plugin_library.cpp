@@ -13,6 +13,7 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include <atomic>
 #include <dlfcn.h>
 #include <openssl/evp.h>
 
@@ -93,9 +94,16 @@ std::string sha256_bytes(std::string_view bytes) {
 namespace {
 
 std::mutex g_log_sink_mutex;
+std::atomic<std::size_t> g_log_shown{kPluginLogShown};
+std::atomic<bool> g_log_notes{true};
 PluginLogSink g_log_sink;
 
 } // namespace
+
+void set_plugin_log_policy(std::size_t shown, bool notes) {
+    g_log_shown.store(shown);
+    g_log_notes.store(notes);
+}
 
 PluginLogSink set_plugin_log_sink(PluginLogSink sink) {
     const std::lock_guard lock(g_log_sink_mutex);
@@ -109,12 +117,14 @@ void PluginLibrary::host_log(void *context, std::int32_t level, const char *mess
     try {
         auto *lib = static_cast<PluginLibrary *>(context);
         if (!lib) return;
+        if (level != TALUS_LOG_WARNING && !g_log_notes.load(std::memory_order_relaxed)) return;
+        const std::size_t shown = g_log_shown.load(std::memory_order_relaxed);
         std::size_t n = 0;
         {
             const std::lock_guard lock(lib->log_mutex_);
             n = ++lib->log_count_;
         }
-        if (n > kPluginLogShown) return;
+        if (n > shown) return;
         const std::string text = message ? std::string(message, strnlen(message, 4096)) : "";
         // Where the solver is: a message of a batch's point says "point 3",
         // which means nothing to a user without the group and particles.
@@ -123,7 +133,7 @@ void PluginLibrary::host_log(void *context, std::int32_t level, const char *mess
             fmt::format("{}: plugin {}{}: {}", level == TALUS_LOG_WARNING ? "warning" : "note",
                         lib->name_.empty() ? lib->path_.string() : lib->name_,
                         task.empty() ? std::string() : " (" + task + ")", text);
-        if (n == kPluginLogShown)
+        if (n == shown)
             line += fmt::format(" (further messages of this plugin are counted; the count comes "
                                 "at the end)");
         const std::lock_guard lock(g_log_sink_mutex);
@@ -176,12 +186,13 @@ std::string PluginLibrary::log_note() const {
     const std::size_t more = log_suppressed();
     if (more == 0) return {};
     return fmt::format("talus: note: plugin {} sent {} message(s) more than the {} shown",
-                       name_.empty() ? path_.string() : name_, more, kPluginLogShown);
+                       name_.empty() ? path_.string() : name_, more, g_log_shown.load());
 }
 
 std::size_t PluginLibrary::log_suppressed() const {
     const std::size_t n = log_messages();
-    return n > kPluginLogShown ? n - kPluginLogShown : 0;
+    const std::size_t shown = g_log_shown.load();
+    return n > shown ? n - shown : 0;
 }
 
 const void *PluginLibrary::extension(const char *id) const {

@@ -6,6 +6,7 @@
 
 #include <talus/io/checkpoint.hpp>
 #include <talus/mpm/simulation.hpp>
+#include <talus/verbosity.hpp>
 
 #include <cstdint>
 #include <filesystem>
@@ -50,6 +51,9 @@ struct RunOptions {
     // from the checkpoint's, unless force_restart.
     const Checkpoint *restart = nullptr;
     bool force_restart = false;
+    // quiet: warnings only (progress is then off too); verbose: every
+    // output and checkpoint, and the plugins loaded.
+    Verbosity verbosity = Verbosity::normal;
 };
 
 // A run stopped by SIGTERM or SIGINT, after writing a checkpoint (the

@@ -60,6 +60,9 @@ struct Checkpoint {
 
 // The identity of every material's plugin as loaded now.
 std::vector<PluginIdentity> plugin_identities(const Scenario &scenario);
+// One line for a verbose log: "talus: material 'soil': model 'lib/mc' 1.0
+// from PATH (library 1.2, SHA-256 ...)".
+std::string describe(const PluginIdentity &plugin);
 
 // What differs between the checkpoint's Talus and plugins and those of this
 // run, one line each (empty: the same binaries).

@@ -229,6 +229,10 @@ class PluginLibrary : public std::enable_shared_from_this<PluginLibrary> {
 inline constexpr std::size_t kPluginLogShown = 20;
 using PluginLogSink = std::function<void(const std::string &)>;
 PluginLogSink set_plugin_log_sink(PluginLogSink sink);
+// How many messages of each library are shown (kPluginLogShown unless set;
+// SIZE_MAX: all), and whether its notes are (a warning always is, up to
+// the count): `talus --verbose` shows all, `--quiet` no notes.
+void set_plugin_log_policy(std::size_t shown, bool notes);
 
 // One material: a model with one set of parameter values. Owns the plugin's
 // instance and keeps its library loaded.
