@@ -55,12 +55,14 @@ SlotBox Boundary::untouched(const Grid &grid) const {
 // Coulomb friction, its tangential speed is reduced by mu times the normal
 // speed removed (a velocity projection of the impulse).
 void Boundary::apply(const Grid &grid, double *field, std::size_t offset, const double *fixity,
-                     double t_run) const {
+                     double t_run, Only only) const {
     const double t = t_run - t0_;
     auto V = [&](std::size_t i) { return field + node::kRecord * i + offset; };
     for (int f = 0; f < 2 * dim_; ++f) {
         const FaceCondition &fc = faces_[static_cast<std::size_t>(f)];
         if (fc.type == FaceType::free) continue;
+        const bool contact = fc.type != FaceType::fixed && fc.type != FaceType::roller;
+        if (contact && only == Only::bilateral) continue;
         const std::size_t axis = static_cast<std::size_t>(f / 2);
         const double sign = (f % 2 == 0) ? -1.0 : 1.0; // outward normal
         for_each_node(grid, grid.face_nodes[static_cast<std::size_t>(f)], [&](std::size_t i) {

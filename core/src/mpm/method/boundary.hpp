@@ -31,8 +31,12 @@ class Boundary {
     // of the grid's active box (Grid::active): the step's kernels read and
     // write no other. `fixity` is Grid::acc: its node::kFixity slot says
     // which fixities reach a node.
-    void apply(const Grid &grid, double *field, std::size_t offset, const double *fixity,
-               double t) const;
+    // With Only::bilateral the contact faces (slip, friction) are left
+    // alone: the grid update's start velocity where FLIP must carry a
+    // wall's impulse to the particles (grid_update.hpp, StartVelocity).
+    enum class Only { all, bilateral };
+    void apply(const Grid &grid, double *field, std::size_t offset, const double *fixity, double t,
+               Only only = Only::all) const;
     // Whether the faces carry all the conditions (no prescribed velocities,
     // no particle fixities): for_each_constrained_node then visits every
     // node a condition reads or changes.

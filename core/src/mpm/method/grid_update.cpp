@@ -14,7 +14,8 @@ namespace {
 // D a constant: the node's component loop unrolled (with the dimension
 // read at run time it stayed a loop per node).
 template <int D, bool Update, DampingKind Damping>
-void velocities_in(Grid &grid, const Boundary &bc, double t, double dt, double alpha, bool clear) {
+void velocities_in(Grid &grid, const Boundary &bc, double t, double dt, double alpha, bool clear,
+                   Boundary::Only on_start) {
     double *a = grid.acc.data(), *v = grid.vel.data();
     const std::size_t vs = node::velocity(D), ve = node::kEndVelocity;
     clear = clear && bc.faces_only();
@@ -64,7 +65,7 @@ void velocities_in(Grid &grid, const Boundary &bc, double t, double dt, double a
         for (std::size_t i = first + c1; i < first + n; ++i)
             update(i);
     });
-    bc.apply(grid, v, vs, a, t);
+    bc.apply(grid, v, vs, a, t, on_start);
     if constexpr (!Update) return;
     bc.for_each_constrained_node(grid, [&](std::size_t i) {
         const double m = a[kRecord * i + node::kMass];
@@ -82,11 +83,11 @@ void velocities_in(Grid &grid, const Boundary &bc, double t, double dt, double a
 
 template <bool Update, DampingKind Damping = DampingKind::none>
 void velocities(Grid &grid, const Boundary &bc, double t, double dt, double alpha = 0.0,
-                bool clear = false) {
+                bool clear = false, Boundary::Only on_start = Boundary::Only::all) {
     if (grid.geo.dim == 2)
-        velocities_in<2, Update, Damping>(grid, bc, t, dt, alpha, clear);
+        velocities_in<2, Update, Damping>(grid, bc, t, dt, alpha, clear, on_start);
     else
-        velocities_in<3, Update, Damping>(grid, bc, t, dt, alpha, clear);
+        velocities_in<3, Update, Damping>(grid, bc, t, dt, alpha, clear, on_start);
 }
 
 } // namespace
@@ -96,16 +97,18 @@ void grid_velocity(Grid &grid, const Boundary &bc, double t) {
 }
 
 void grid_update(Grid &grid, const Boundary &bc, double t, double dt, const DampingSpec &damping,
-                 Accumulators after) {
+                 Accumulators after, StartVelocity start) {
     const bool clear = after == Accumulators::clear;
+    const Boundary::Only on =
+        start == StartVelocity::as_mapped ? Boundary::Only::bilateral : Boundary::Only::all;
     switch (damping.kind) {
     case DampingKind::local:
-        velocities<true, DampingKind::local>(grid, bc, t, dt, damping.coefficient, clear);
+        velocities<true, DampingKind::local>(grid, bc, t, dt, damping.coefficient, clear, on);
         break;
     case DampingKind::viscous:
-        velocities<true, DampingKind::viscous>(grid, bc, t, dt, damping.coefficient, clear);
+        velocities<true, DampingKind::viscous>(grid, bc, t, dt, damping.coefficient, clear, on);
         break;
-    default: velocities<true>(grid, bc, t, dt, 0.0, clear); break;
+    default: velocities<true>(grid, bc, t, dt, 0.0, clear, on); break;
     }
 }
 

@@ -54,7 +54,9 @@ void Simulation::Impl::grid_velocity(double t) {
 
 void Simulation::Impl::grid_update(double t, double dt, Accumulators after) {
     auto tm = timer(Phase::grid_update);
-    talus::grid_update(grid, boundary, t, dt, conditions().damping, after);
+    talus::grid_update(grid, boundary, t, dt, conditions().damping, after,
+                       velocity_motion == Motion::mean_velocity ? StartVelocity::constrained
+                                                                : StartVelocity::as_mapped);
 }
 
 void Simulation::Impl::remapped_velocity(double t_end) {
