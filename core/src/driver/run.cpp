@@ -1,5 +1,6 @@
 #include <talus/driver/run.hpp>
 
+#include "clamp_watch.hpp"
 #include "governed_steps.hpp"
 #include "run_folder.hpp"
 #include "stop_signals.hpp"
@@ -1331,6 +1332,7 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
         return now;
     };
     GovernedSteps steps(opt.adapt_threads, comm);
+    ClampWatch clamps(sc);
     for (;;) {
         const StageSpec &stage = sim.stages()[sim.stage()];
         StageEnd why = StageEnd::running;
@@ -1347,6 +1349,7 @@ RunSummary run_scenario(Scenario &sc, const RunOptions &opt, std::ostream &log) 
             // reaching it.
             if (sim.time() >= due() - 1e-9 * sim.last_dt()) {
                 write_or_stop(out, sim, said);
+                clamps.look(sim, log);
                 // One file per output time reached, even if a long step
                 // passed several of them.
                 next_k = next_multiple(sim.time() + 1e-9 * sim.last_dt(), every, next_k);
